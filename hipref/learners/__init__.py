@@ -1,0 +1,48 @@
+"""Learners: tabular COACH for the high level; SI pretraining, PESI, CO-PESI and noise estimation below it."""
+
+from hipref.learners.coach import CoachConfig, TabularCoach
+from hipref.learners.coteaching import CoPESIConfig, CoPESILearner, CoTeachingPair, coteach_select
+from hipref.learners.noise_estimation import (
+    PreferenceSet,
+    conflict_counts,
+    estimate_noise,
+    random_preferences,
+)
+from hipref.learners.pesi import SI_LOSSES, PESIConfig, PESILearner, pesi_loss, pesi_loss_n, standard_ce_loss
+from hipref.learners.sysid import (
+    CUBE_MASS,
+    DESK_HEIGHT,
+    CandidateSet,
+    Normaliser,
+    PretrainConfig,
+    SIModel,
+    flatten_history,
+    pretrain,
+)
+
+__all__ = [
+    "CUBE_MASS",
+    "DESK_HEIGHT",
+    "SI_LOSSES",
+    "CandidateSet",
+    "CoPESIConfig",
+    "CoPESILearner",
+    "CoTeachingPair",
+    "CoachConfig",
+    "Normaliser",
+    "PESIConfig",
+    "PESILearner",
+    "PreferenceSet",
+    "PretrainConfig",
+    "SIModel",
+    "TabularCoach",
+    "conflict_counts",
+    "coteach_select",
+    "estimate_noise",
+    "flatten_history",
+    "pesi_loss",
+    "pesi_loss_n",
+    "pretrain",
+    "random_preferences",
+    "standard_ce_loss",
+]

@@ -1,0 +1,181 @@
+"""Desk wiping (paper section 5, Fig. 2a): a UR5e with a sponge wipes a desk of unknown height.
+
+`WipingTask` is the physical task with its goal-conditioned low-level policy pi^l: `stroke` drives the
+sponge to a goal on the desk using an *estimate* of the desk height (never the simulator's value),
+through admittance + IK + SPD. A stroke succeeds when the sponge reaches its goal with the contact force
+inside the safe band for most of the way, which needs a good height estimate."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from hipref.control.ik import tool_down_rotation
+from hipref.control.tool import ControllerConfig, ToolController
+from hipref.sim.config import SceneConfig
+from hipref.sim.scene import Scene, make_scene
+from hipref.validation import check_range
+
+START_POSTURE = np.array([0.0, -1.3, 1.8, -2.07, -1.57, 0.0])
+"""Joint seed for inverse kinematics at reset: elbow up, tool down, facing the desk."""
+
+
+def check_parameter(name: str, value: float, bounds: tuple[float, float]) -> float:
+    """The unknown parameter (or an estimate of it) must be finite and inside its range."""
+    check_range(name, value, bounds[0], bounds[1])
+    return float(value)
+
+
+@dataclass(frozen=True)
+class WipingConfig:
+    """The wiping task: desk-height range, wiping area, safe force band and the policy's motion."""
+
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    """The physical world (Table 1)."""
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    """Gains of SPD and admittance."""
+    height_range: tuple[float, float] = (0.5, 0.9)
+    """Range of the desk height in m, the unknown parameter (Table 2)."""
+    area_x: tuple[float, float] = (-0.3, 0.3)
+    """Extent of the wiping area along the desk in m (12 cells of 0.05 m); reachable at every height."""
+    area_y: tuple[float, float] = (-0.1, 0.2)
+    """Extent of the wiping area across the desk in m (6 cells of 0.05 m), from the robot's side."""
+    force_band: tuple[float, float] = (1.0, 60.0)
+    """Safe band of the contact force in N: below it the sponge does not clean, above it risks damage
+    (robosuite's Wipe uses 0.5 N and 60 N)."""
+    press_depth: float = 0.03
+    """Depth in m below the estimated surface the sponge is aimed at; the admittance stiffness turns it
+    into a contact force of about K_d times the depth."""
+    in_band_fraction: float = 0.8
+    """Fraction of a stroke's control periods whose contact force must lie in the safe band."""
+    hover_height: float = 0.95
+    """Height in m of the tool tip at reset: above the highest desk."""
+    approach_speed: float = 0.5
+    """Speed in m/s of the descent towards the estimated surface until `approach_clearance` above it."""
+    approach_clearance: float = 0.03
+    """Height in m above the estimated surface where the descent slows to the tool speed."""
+
+    def __post_init__(self) -> None:
+        check_range("press_depth", self.press_depth, 0.0, 0.05)
+        check_range("in_band_fraction", self.in_band_fraction, 0.0, 1.0)
+        check_range("approach_speed", self.approach_speed, 0.01, 2.0)
+        check_range("approach_clearance", self.approach_clearance, 0.0, 0.2)
+        if not 0 <= self.force_band[0] < self.force_band[1]:
+            raise ValueError(f"force_band must be (low, high) with 0 <= low < high, got {self.force_band!r}")
+        if not self.height_range[1] + 0.03 <= self.hover_height <= 1.2:
+            raise ValueError(f"hover_height must be in [{self.height_range[1] + 0.03}, 1.2], got {self.hover_height}")
+
+
+@dataclass
+class Stroke:
+    """What one stroke did: per control period, the features the SI model sees and the contact force."""
+
+    features: np.ndarray
+    """(periods, 21): joint positions (6), joint velocities (6), wrist force (3), joint reference (6)."""
+    force: np.ndarray
+    """(periods,): normal contact force in N measured at the wrist."""
+    tool_xy: np.ndarray
+    """(periods, 2): tool tip position on the desk plane."""
+    reached: bool
+    """Whether the sponge ended within the reach tolerance of its goal."""
+    in_band: float
+    """Fraction of the stroke's periods whose contact force was inside the safe band."""
+    success: bool
+
+
+FEATURES_PER_STEP = 21
+
+
+class WipingTask:
+    """The wiping world with its goal-conditioned low-level policy; physics built once per instance."""
+
+    def __init__(self, config: WipingConfig | None = None, *, compliant: bool = True) -> None:
+        self.config = config or WipingConfig()
+        self.scene: Scene = make_scene(self.config.scene, with_cube=False)
+        self.controller = ToolController(self.scene, self.config.controller, compliant=compliant)
+        self.rotation = tool_down_rotation(0.0)
+        self._scratch = mujoco.MjData(self.scene.model)
+        self.reference = np.zeros(3)
+        self.in_contact_phase = False
+
+    @property
+    def height(self) -> float:
+        return self.scene.desk_height
+
+    def reset(self, height: float, tool_xy: tuple[float, float] = (0.0, 0.05)) -> None:
+        """Set the desk height and place the tool hovering above `tool_xy`, at rest."""
+        height = check_parameter("desk height", height, self.config.height_range)
+        scene = self.scene
+        m, d = scene.model, scene.data
+        scene.set_desk_height(height)
+        target = np.array([tool_xy[0], tool_xy[1], self.config.hover_height])
+        self._scratch.qpos[scene.arm_qpos] = START_POSTURE
+        q, _ = self.controller.ik.solve(self._scratch, target, self.rotation)
+        mujoco.mj_resetData(m, d)
+        d.qpos[scene.arm_qpos] = q
+        mujoco.mj_forward(m, d)
+        self.controller.reset()
+        self.reference[:] = target
+        self.in_contact_phase = False
+
+    def contact_force(self) -> float:
+        """Normal force of the desk on the sponge, from the wrist sensor (N, upward positive)."""
+        return float(self.controller.force[2])
+
+    def _features(self) -> np.ndarray:
+        d, scene = self.scene.data, self.scene
+        return np.concatenate(
+            [d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof], self.controller.force, self.controller.q_ref]
+        )
+
+    def approach(self, estimate: float) -> None:
+        """Descend from hover to the estimated surface minus the press depth (fast, then at tool speed)."""
+        cfg, scene_cfg = self.config, self.config.scene
+        estimate = check_parameter("height estimate", estimate, self.config.height_range)
+        dt = scene_cfg.control_period
+        slow_from = estimate + cfg.approach_clearance
+        bottom = estimate - cfg.press_depth
+        ref = self.reference
+        while ref[2] > bottom + 1e-9:
+            speed = cfg.approach_speed if ref[2] > slow_from else scene_cfg.tool_speed
+            ref[2] = max(bottom, ref[2] - speed * dt)
+            self.controller.run(ref, self.rotation)
+        # Let the admittance settle on the surface before moving.
+        for _ in range(round(0.2 / dt)):
+            self.controller.run(ref, self.rotation)
+        self.in_contact_phase = True
+
+    def stroke(self, goal_xy: np.ndarray, estimate: float) -> Stroke:
+        """Move the sponge on the desk to `goal_xy` at tool speed, pressing at the estimated surface."""
+        cfg, scene_cfg = self.config, self.config.scene
+        if not self.in_contact_phase:
+            self.approach(estimate)
+        estimate = check_parameter("height estimate", estimate, self.config.height_range)
+        goal = np.asarray(goal_xy, dtype=float)
+        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+            raise ValueError(f"goal must be two finite coordinates, got {goal_xy!r}")
+        dt = scene_cfg.control_period
+        ref = self.reference
+        ref[2] = estimate - cfg.press_depth
+        start = ref[:2].copy()
+        distance = float(np.linalg.norm(goal - start))
+        moving = max(1, math.ceil(distance / (scene_cfg.tool_speed * dt)))
+        settle = round(0.1 / dt)
+        periods = moving + settle
+        features = np.empty((periods, FEATURES_PER_STEP))
+        force = np.empty(periods)
+        tool_xy = np.empty((periods, 2))
+        site = self.scene.tool_tip
+        for k in range(periods):
+            ref[:2] = start + (goal - start) * min(1.0, (k + 1) / moving)
+            self.controller.run(ref, self.rotation)
+            features[k] = self._features()
+            force[k] = self.contact_force()
+            tool_xy[k] = self.scene.data.site_xpos[site][:2]
+        low, high = cfg.force_band
+        in_band = float(np.mean((force >= low) & (force <= high)))
+        reached = bool(np.linalg.norm(tool_xy[-1] - goal) <= scene_cfg.reach_tolerance)
+        return Stroke(features, force, tool_xy, reached, in_band, reached and in_band >= cfg.in_band_fraction)

@@ -1,0 +1,231 @@
+"""The system-identification model SI: a trajectory slice -> a distribution over candidate parameters (A.4).
+
+SI maps the last h (state, action) steps to Pr(phi) over a finite candidate set Phi (section 4, 'Preference
+Enhanced System Identification'); it is pretrained by regression on domain-randomised data (Algorithm 4)
+and later fine-tuned with preferences (pesi.py, coteaching.py).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from hipref.validation import check_int, check_range
+
+
+@dataclass(frozen=True)
+class CandidateSet:
+    """Phi: evenly spaced candidate values low, low + resolution, ..., high of one unknown parameter."""
+
+    low: float
+    """Smallest candidate, in parameter units (the lower end of the randomisation range)."""
+    high: float
+    """Largest candidate, in parameter units; high - low must be a whole number of `resolution` steps."""
+    resolution: float
+    """Spacing between neighbouring candidates, in parameter units."""
+
+    def __post_init__(self) -> None:
+        check_range("low", self.low, -1e9, 1e9)
+        check_range("high", self.high, -1e9, 1e9)
+        if self.high <= self.low:
+            raise ValueError(f"high must be greater than low={self.low}, got {self.high}")
+        check_range("resolution", self.resolution, 1e-12, self.high - self.low)
+        steps = (self.high - self.low) / self.resolution
+        if abs(steps - round(steps)) > 1e-6:
+            raise ValueError(
+                f"resolution must divide high - low = {self.high - self.low} into whole steps, "
+                f"got {self.resolution}"
+            )
+
+    @property
+    def size(self) -> int:
+        """|Phi|, the number of candidates."""
+        return round((self.high - self.low) / self.resolution) + 1
+
+    @property
+    def values(self) -> np.ndarray:
+        """The candidates in increasing order (linspace, so both ends are exact)."""
+        return np.linspace(self.low, self.high, self.size)
+
+    def normalise(self, parameter: np.ndarray | float) -> np.ndarray | float:
+        """Map parameter units to [0, 1] over the range, so losses weigh height and mass alike."""
+        return (parameter - self.low) / (self.high - self.low)
+
+    def denormalise(self, normalised: np.ndarray | float) -> np.ndarray | float:
+        """Inverse of `normalise`."""
+        return self.low + normalised * (self.high - self.low)
+
+    def index_of(self, value: float) -> int:
+        """Index of `value` in Phi; raise ValueError if it is not (up to rounding) one of the candidates."""
+        index = round((float(value) - self.low) / self.resolution)
+        if not (
+            0 <= index < self.size and math.isclose(self.values[index], value, abs_tol=1e-6 * self.resolution)
+        ):
+            raise ValueError(f"value must be a candidate of {self}, got {value!r}")
+        return index
+
+
+DESK_HEIGHT = CandidateSet(low=0.5, high=0.9, resolution=0.01)
+"""Desk height in m: the randomisation range of Table 2 in 1 cm steps (41 candidates)."""
+CUBE_MASS = CandidateSet(low=8.0, high=20.0, resolution=0.25)
+"""Cube mass in kg: the randomisation range of Table 2 in 0.25 kg steps (49 candidates)."""
+
+
+def flatten_history(states: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """The SI input tau = (s_{t-h}, a_{t-h}, ..., s_{t-1}, a_{t-1}) as one flat vector (section 4).
+
+    states: (h, state_dim); actions: (h, action_dim). Steps are interleaved in time order.
+    """
+    states, actions = np.atleast_2d(states), np.atleast_2d(actions)
+    if states.shape[0] != actions.shape[0]:
+        raise ValueError(
+            f"states and actions must cover the same h steps, got {states.shape[0]} and {actions.shape[0]}"
+        )
+    return np.concatenate([states, actions], axis=1).reshape(-1)
+
+
+@dataclass(frozen=True, eq=False)
+class Normaliser:
+    """Per-feature standardisation (x - mean) / std, fitted on the pretraining data, kept with the model."""
+
+    mean: np.ndarray
+    """Per-feature mean of the pretraining inputs."""
+    std: np.ndarray
+    """Per-feature standard deviation, floored so a constant feature does not divide by zero."""
+
+    @classmethod
+    def fit(cls, features: np.ndarray, min_std: float = 1e-6) -> Normaliser:
+        """Fit on an (n_samples, input_dim) array."""
+        features = np.asarray(features, dtype=np.float64)
+        return cls(mean=features.mean(axis=0), std=np.maximum(features.std(axis=0), min_std))
+
+    def __call__(self, features: np.ndarray) -> np.ndarray:
+        return (np.asarray(features) - self.mean) / self.std
+
+
+class SIModel(nn.Module):
+    """SI: features -> logits over Phi. MLP [256, 128, 64, 32] with tanh (Table 2).
+
+    The input is the unnormalised flat history of `flatten_history`; the model standardises it with its own
+    stored `Normaliser` (buffers, so it travels in the state dict), which `pretrain` fits.
+    """
+
+    def __init__(
+        self,
+        input_dim: int,
+        candidates: CandidateSet,
+        hidden_sizes: tuple[int, ...] = (256, 128, 64, 32),
+        seed: int = 0,
+    ) -> None:
+        super().__init__()
+        check_int("input_dim", input_dim, 1)
+        if not hidden_sizes or not all(isinstance(h, int) and h >= 1 for h in hidden_sizes):
+            raise ValueError(
+                f"hidden_sizes must be a non-empty tuple of positive integers, got {hidden_sizes!r}"
+            )
+        self.candidates = candidates
+        self.input_dim = input_dim
+        self.register_buffer("candidate_values", torch.as_tensor(candidates.values, dtype=torch.float32))
+        self.register_buffer(
+            "normalised_values", torch.as_tensor(candidates.normalise(candidates.values), dtype=torch.float32)
+        )
+        self.register_buffer("feature_mean", torch.zeros(input_dim))
+        self.register_buffer("feature_std", torch.ones(input_dim))
+        # Weights drawn from a private seeded stream: same seed, same initial model, global RNG untouched.
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            layers: list[nn.Module] = []
+            width = input_dim
+            for hidden in hidden_sizes:
+                layers += [nn.Linear(width, hidden), nn.Tanh()]
+                width = hidden
+            layers.append(nn.Linear(width, candidates.size))
+            self.net = nn.Sequential(*layers)
+
+    def set_normaliser(self, normaliser: Normaliser) -> None:
+        """Store the input standardisation used from now on."""
+        if normaliser.mean.shape != (self.input_dim,):
+            raise ValueError(
+                f"normaliser must have {self.input_dim} features, got shape {normaliser.mean.shape}"
+            )
+        self.feature_mean.copy_(torch.as_tensor(normaliser.mean, dtype=torch.float32))
+        self.feature_std.copy_(torch.as_tensor(normaliser.std, dtype=torch.float32))
+
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
+        """Logits over Phi for a batch (or a single vector) of raw features."""
+        return self.net((features - self.feature_mean) / self.feature_std)
+
+    def distribution(self, features: torch.Tensor) -> torch.Tensor:
+        """Pr(phi | features), the softmax over Phi."""
+        return torch.softmax(self(features), dim=-1)
+
+    def estimate(self, features: torch.Tensor, normalised: bool = False) -> torch.Tensor:
+        """E_Pr[phi]: the parameter the controller uses (in [0, 1] if `normalised`).
+
+        The expectation rather than the argmax: it is not quantised to the candidate grid, it moves smoothly
+        as preferences reshape the distribution (an argmax jumps only when the mode changes), it is the
+        quantity Algorithm 4 regresses, and under uncertainty it minimises the expected squared error.
+        """
+        values = self.normalised_values if normalised else self.candidate_values
+        return (self.distribution(features) * values).sum(dim=-1)
+
+    @torch.no_grad()
+    def predict(self, features: np.ndarray) -> np.ndarray:
+        """`estimate` for numpy input, in parameter units, as a numpy array (a 0-d array for one vector)."""
+        return self.estimate(torch.as_tensor(np.asarray(features), dtype=torch.float32)).numpy()
+
+
+@dataclass(frozen=True)
+class PretrainConfig:
+    """Algorithm 4: supervised pretraining of SI on domain-randomised (features, parameter) pairs."""
+
+    learning_rate: float = 1e-3
+    """Adam step size (Table 2, 'System Identification Learning Rate')."""
+    batch_size: int = 128
+    """l, samples per minibatch. Not given in the paper."""
+    n_steps: int = 3000
+    """Gradient steps (the loop of Algorithm 4 has no stated end)."""
+
+    def __post_init__(self) -> None:
+        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
+        check_int("batch_size", self.batch_size, 1)
+        check_int("n_steps", self.n_steps, 0)
+
+
+def pretrain(
+    model: SIModel, features: np.ndarray, parameters: np.ndarray, config: PretrainConfig, seed: int
+) -> np.ndarray:
+    """Algorithm 4 on `model` in place; returns the loss of every step.
+
+    What is regressed: the model's expected value E_Pr[phi] (on the [0, 1]-normalised candidate scale)
+    against the normalised true phi, by mean squared error (section 4: 'a regression problem and the mean
+    squared loss is used'). The model's output stays a distribution, but pretraining only shapes its mean.
+    """
+    features = np.asarray(features, dtype=np.float64)
+    parameters = np.asarray(parameters, dtype=np.float64).reshape(-1)
+    if features.ndim != 2 or features.shape[1] != model.input_dim or len(features) != len(parameters):
+        raise ValueError(
+            f"features must be (n, {model.input_dim}) with one parameter per row, got {features.shape} "
+            f"and {parameters.shape[0]} parameters"
+        )
+    model.set_normaliser(Normaliser.fit(features))
+    x_all = torch.as_tensor(features, dtype=torch.float32)
+    target_all = torch.as_tensor(model.candidates.normalise(parameters), dtype=torch.float32)
+    optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    rng = np.random.default_rng(seed)
+    batch_size = min(config.batch_size, len(features))
+    losses = np.empty(config.n_steps)
+    for step in range(config.n_steps):
+        # Alg. 4 l.2: sample a batch {(tau_j, phi_j)} from D
+        batch = torch.as_tensor(rng.choice(len(features), size=batch_size, replace=False))
+        # Alg. 4 l.4: MSE between normalised E_Pr[phi] and normalised phi
+        loss = torch.mean((model.estimate(x_all[batch], normalised=True) - target_all[batch]) ** 2)
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+        losses[step] = loss.item()
+    return losses

@@ -1,0 +1,123 @@
+"""Preferences over candidate parameters: the query, the allowed labels and a scripted teacher (Eq. 2, 3).
+
+A learner shows the teacher N >= 2 candidate values of the unknown parameter (in the paper, clips of the
+controller run with each); the teacher says which one it prefers. For two candidates the label is
+y in {-1, 1}, 1 meaning candidates[0] is preferred (Eq. 2). For N candidates it is a vector with one entry
+1 (the preferred candidate) and -1/(N-1) elsewhere (Eq. 3), so the entries sum to zero.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from hipref.validation import check_range
+
+
+@dataclass(frozen=True, eq=False)
+class PreferenceQuery:
+    """'Which of these parameter values is best?', asked about the SI input the candidates were drawn for."""
+
+    candidates: tuple[float, ...]
+    """The N >= 2 distinct candidate values shown, in parameter units; their order defines the label."""
+    features: np.ndarray
+    """The (flattened, unnormalised) system-identification input the query was made on; stored read-only."""
+
+    def __post_init__(self) -> None:
+        candidates = tuple(float(c) for c in self.candidates)
+        if len(candidates) < 2 or not all(math.isfinite(c) for c in candidates):
+            raise ValueError(f"candidates must be at least 2 finite numbers, got {self.candidates!r}")
+        if len(set(candidates)) != len(candidates):
+            raise ValueError(f"candidates must be distinct, got {self.candidates!r}")
+        features = np.array(self.features, dtype=np.float64)
+        if not np.all(np.isfinite(features)):
+            raise ValueError("features must be finite numbers, got a value that is NaN or infinite")
+        features.flags.writeable = False
+        object.__setattr__(self, "candidates", candidates)
+        object.__setattr__(self, "features", features)
+
+
+def preference_label_vector(label: object, n_candidates: int) -> np.ndarray:
+    """Check a preference label for `n_candidates` candidates and return it in vector form.
+
+    Two candidates: a number y in {-1, 1} (Eq. 2), returned as (y, -y); the vector form is accepted too.
+    N candidates: a length-N vector with exactly one entry 1 and every other entry -1/(N-1) (Eq. 3).
+    Anything else raises ValueError.
+    """
+    if n_candidates < 2:
+        raise ValueError(f"n_candidates must be an integer >= 2, got {n_candidates!r}")
+    if n_candidates == 2 and isinstance(label, numbers.Real) and not isinstance(label, bool | np.bool_):
+        if float(label) not in (-1.0, 1.0):
+            raise ValueError(f"a preference over 2 candidates must be -1 or 1, got {label!r}")
+        return np.array([float(label), -float(label)])
+    other = -1.0 / (n_candidates - 1)
+    allowed = f"a length-{n_candidates} vector with one entry 1 and the others {other:.4g}"
+    try:
+        vector = np.asarray(label, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"a preference over {n_candidates} candidates must be {allowed}, got {label!r}"
+        ) from None
+    # isclose: -1/(N-1) is not exact in binary floating point, so a computed label may differ in the last bit.
+    is_one = np.isclose(vector, 1.0, rtol=0.0, atol=1e-9)
+    is_other = np.isclose(vector, other, rtol=0.0, atol=1e-9)
+    if vector.shape != (n_candidates,) or is_one.sum() != 1 or not np.all(is_one | is_other):
+        raise ValueError(f"a preference over {n_candidates} candidates must be {allowed}, got {label!r}")
+    return np.where(is_one, 1.0, other)
+
+
+def preferred_index(label_vector: np.ndarray) -> int:
+    """Index of the preferred candidate in a label vector from `preference_label_vector`."""
+    return int(np.argmax(label_vector))
+
+
+class ScriptedPreferenceTeacher:
+    """Prefers the candidate closest to the true parameter; with probability `noise` the answer is flipped.
+
+    This is the paper's simulated teacher (section 5): noise is the fraction of flipped preferences, each
+    flipped independently and uniformly. For two candidates a flip is y -> -y; for N > 2 the preferred
+    candidate is replaced by one of the other N - 1, chosen uniformly.
+
+    Ties (two candidates equally close, up to floating-point rounding) are broken uniformly at random with
+    the teacher's rng rather than by position: a positional rule would make every tie favour candidates[0]
+    and bias a learner whose queries put, say, the lower value first.
+    """
+
+    def __init__(self, true_parameter: float, noise: float, rng: np.random.Generator) -> None:
+        """
+        Args:
+            true_parameter: the environment's actual parameter (desk height in m or cube mass in kg).
+            noise: probability of flipping each answer, in [0, 1].
+            rng: source of tie-breaking and flips.
+        """
+        if not (isinstance(true_parameter, numbers.Real) and math.isfinite(true_parameter)):
+            raise ValueError(f"true_parameter must be a finite number, got {true_parameter!r}")
+        check_range("noise", noise, 0.0, 1.0)
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng must be a numpy.random.Generator, got {rng!r}")
+        self.true_parameter = float(true_parameter)
+        self.noise = float(noise)
+        self.rng = rng
+
+    def closest(self, candidates: tuple[float, ...]) -> int:
+        """Index of the candidate nearest the true parameter, ties broken uniformly with the rng."""
+        distance = np.abs(np.asarray(candidates, dtype=np.float64) - self.true_parameter)
+        nearest = np.flatnonzero(np.isclose(distance, distance.min(), rtol=1e-9, atol=1e-12))
+        return int(nearest[0]) if nearest.size == 1 else int(self.rng.choice(nearest))
+
+    def answer(self, query: PreferenceQuery) -> int | np.ndarray:
+        """y in {-1, 1} for two candidates (Eq. 2), else the Eq. 3 label vector."""
+        n = len(query.candidates)
+        preferred = self.closest(query.candidates)
+        if self.noise > 0 and self.rng.random() < self.noise:
+            # Uniform flip: any of the other candidates, each equally likely.
+            others = [i for i in range(n) if i != preferred]
+            preferred = int(others[self.rng.integers(len(others))])
+        if n == 2:
+            return 1 if preferred == 0 else -1
+        label = np.full(n, -1.0 / (n - 1))
+        label[preferred] = 1.0
+        return label

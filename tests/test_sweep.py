@@ -1,0 +1,263 @@
+"""Properties of the sweep engine: same rows on every backend, nothing computed twice, nothing lost."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from hipref import sweep
+from hipref.sweep import SweepError, cached_artefact, cell_key, run_sweep
+from tests._sweep_cells import (
+    ThreadsCell,
+    ToyCell,
+    executing_pids,
+    executions,
+    resume_cells,
+    threads_cell,
+    toy_cell,
+)
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def grid(log_dir: Path | str = "") -> list[ToyCell]:
+    """Six cells, the first one slow: with two workers it finishes last, the others out of order."""
+    return [
+        ToyCell(seed=seed, noise=noise, log_dir=str(log_dir), sleep=0.5 if (seed, noise) == (0, 0.0) else 0.0)
+        for seed in (0, 1, 2)
+        for noise in (0.0, 0.2)
+    ]
+
+
+def entries(cache_dir: Path) -> list[Path]:
+    return sorted((cache_dir / "cells").glob("*.pkl"))
+
+
+@pytest.fixture
+def log_dir(tmp_path: Path) -> Path:
+    path = tmp_path / "log"
+    path.mkdir()
+    return path
+
+
+@pytest.fixture(scope="module")
+def dask_address() -> Iterator[str]:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        yield cluster.scheduler_address
+
+
+@pytest.fixture(autouse=True)
+def _fresh_artefacts() -> Iterator[None]:
+    sweep.forget_artefacts()
+    yield
+    sweep.forget_artefacts()
+
+
+def test_rows_are_identical_on_every_backend_and_follow_cell_order(
+    dask_address: str, log_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cells = grid(log_dir)
+    one = run_sweep(toy_cell, cells, cache_dir=False, workers=1)
+    two = run_sweep(toy_cell, cells, cache_dir=False, workers=2)
+    on_dask = run_sweep(toy_cell, cells, cache_dir=False, scheduler=dask_address)
+
+    expected = [(cell.seed, cell.noise) for cell in cells for _ in range(5)]
+    assert list(zip(one["seed"], one["noise"], strict=True)) == expected
+    assert list(one.index) == list(range(len(one)))
+    pd.testing.assert_frame_equal(one, two)
+    pd.testing.assert_frame_equal(one, on_dask)
+    assert one.to_csv() == two.to_csv() == on_dask.to_csv()
+
+    # The environment variable selects the cluster too, and the cells really run on its workers.
+    env_log = log_dir / "env"
+    env_log.mkdir()
+    monkeypatch.setenv("HIPREF_DASK_SCHEDULER", dask_address)
+    via_env = run_sweep(toy_cell, grid(env_log), cache_dir=False)
+    assert via_env.to_csv() == one.to_csv()
+    distributed = pytest.importorskip("distributed")
+    with distributed.Client(dask_address) as client:
+        worker_pids = set(client.run(os.getpid).values())
+    assert executing_pids(env_log) <= worker_pids
+
+
+def test_cells_run_single_threaded_in_workers_and_in_process() -> None:
+    import torch
+
+    cells = [ThreadsCell(seed) for seed in range(2)]
+    in_workers = run_sweep(threads_cell, cells, cache_dir=False, workers=2)
+    assert list(in_workers["torch_threads"]) == [1, 1]
+    assert list(in_workers["omp"]) == ["1", "1"]
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        in_process = run_sweep(threads_cell, cells, cache_dir=False, workers=1)
+        assert list(in_process["torch_threads"]) == [1, 1]
+        assert torch.get_num_threads() == 2, "the caller's thread setting is restored"
+    finally:
+        torch.set_num_threads(before)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_second_run_recomputes_nothing(tmp_path: Path, log_dir: Path, workers: int) -> None:
+    cells = grid(log_dir)
+    first = run_sweep(toy_cell, cells, cache_dir=tmp_path / "cache", workers=workers)
+    assert executions(log_dir) == sorted(cell.seed for cell in cells)
+    assert len(entries(tmp_path / "cache")) == len(cells)
+
+    second = run_sweep(toy_cell, cells, cache_dir=tmp_path / "cache", workers=workers)
+    assert len(executions(log_dir)) == len(cells), "no cell ran again"
+    assert second.to_csv() == first.to_csv()
+
+
+def test_equal_cells_are_computed_once(log_dir: Path) -> None:
+    cell = ToyCell(seed=3, log_dir=str(log_dir))
+    df = run_sweep(toy_cell, [cell, ToyCell(seed=4), cell], cache_dir=False, workers=1)
+    assert executions(log_dir) == [3]
+    assert list(df["seed"]) == [3] * 5 + [4] * 5 + [3] * 5
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "wrong_type"])
+def test_damaged_cache_entry_is_recomputed_with_a_warning(tmp_path: Path, log_dir: Path, damage: str) -> None:
+    cells = grid(log_dir)
+    cache = tmp_path / "cache"
+    reference = run_sweep(toy_cell, cells, cache_dir=cache, workers=1)
+    victim = cache / "cells" / f"{cell_key(toy_cell, cells[2])}.pkl"
+    if damage == "truncate":
+        victim.write_bytes(victim.read_bytes()[:50])
+    elif damage == "garbage":
+        victim.write_bytes(b"not a pickle at all")
+    else:
+        victim.write_bytes(pickle.dumps(["a list, not a DataFrame"]))
+
+    with pytest.warns(UserWarning, match=victim.name):
+        again = run_sweep(toy_cell, cells, cache_dir=cache, workers=1)
+    assert again.to_csv() == reference.to_csv()
+    assert executions(log_dir) == sorted([*(cell.seed for cell in cells), cells[2].seed])
+    # The recomputed entry replaced the damaged one.
+    assert pickle.loads(victim.read_bytes()).equals(reference.iloc[10:15].reset_index(drop=True))
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_failing_cell_reports_config_and_traceback_and_others_are_cached(
+    tmp_path: Path, workers: int
+) -> None:
+    cells = [ToyCell(seed=0), ToyCell(seed=1, fail=True), ToyCell(seed=2)]
+    with pytest.raises(SweepError) as raised:
+        run_sweep(toy_cell, cells, cache_dir=tmp_path, workers=workers)
+    message = str(raised.value)
+    assert repr(cells[1]) in message
+    assert "RuntimeError: toy failure in cell with seed 1" in message
+    assert "Traceback (most recent call last)" in message
+    assert [cell for cell, _ in raised.value.failures] == [cells[1]]
+    assert {path.stem for path in entries(tmp_path)} == {cell_key(toy_cell, c) for c in (cells[0], cells[2])}
+
+
+def test_wrong_return_type_is_a_failure(tmp_path: Path) -> None:
+    with pytest.raises(SweepError, match="returned list, not a pandas DataFrame"):
+        run_sweep(_returns_list, [ToyCell(seed=0)], cache_dir=False, workers=1)
+
+
+def _returns_list(cell: ToyCell) -> list[int]:
+    return [cell.seed]
+
+
+def test_killed_sweep_resumes_without_recomputing_and_matches_an_uninterrupted_run(
+    tmp_path: Path, log_dir: Path
+) -> None:
+    cache = tmp_path / "cache"
+    cells = resume_cells(str(log_dir))
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tests._sweep_cells", str(cache), str(log_dir)],
+        cwd=REPO,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while len(entries(cache)) < 3 and process.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        os.kill(process.pid, signal.SIGKILL)
+    finally:
+        process.wait()
+    assert process.returncode == -signal.SIGKILL, "the sweep was killed, not finished"
+    cached = {path.stem for path in entries(cache)}
+    assert 3 <= len(cached) < len(cells)
+
+    resumed = run_sweep(toy_cell, cells, cache_dir=cache, workers=1)
+    missing = sorted(cell.seed for cell in cells if cell_key(toy_cell, cell) not in cached)
+    assert executions(log_dir, pid=os.getpid()) == missing
+
+    uninterrupted = run_sweep(toy_cell, cells, cache_dir=tmp_path / "fresh", workers=1)
+    assert resumed.to_csv() == uninterrupted.to_csv()
+
+
+def test_cell_key_depends_on_config_and_function_only() -> None:
+    assert cell_key(toy_cell, ToyCell(seed=1)) == cell_key(toy_cell, ToyCell(seed=1))
+    assert cell_key(toy_cell, ToyCell(seed=1)) != cell_key(toy_cell, ToyCell(seed=2))
+    assert cell_key(toy_cell, ToyCell(seed=1)) != cell_key(_returns_list, ToyCell(seed=1))
+    with pytest.raises(TypeError, match="dataclass"):
+        cell_key(toy_cell, {"seed": 1})
+
+
+def test_code_version_names_the_package_version() -> None:
+    import hipref
+
+    assert sweep.code_version().startswith(hipref.__version__ + "+")
+    assert sweep.code_version() is sweep.code_version()
+
+
+def test_default_cache_dir(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.delenv("HIPREF_CACHE_DIR", raising=False)
+    assert sweep.default_cache_dir() == REPO / ".cache" / "hipref"
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(tmp_path))
+    assert sweep.default_cache_dir() == tmp_path
+
+
+def test_cached_artefact_builds_once_then_loads(tmp_path: Path) -> None:
+    builds: list[int] = []
+
+    def build() -> dict[str, list[float]]:
+        builds.append(1)
+        return {"weights": [0.5, 1.5]}
+
+    config = ToyCell(seed=7)
+    first = cached_artefact("model", config, build, cache_dir=tmp_path)
+    assert cached_artefact("model", config, build, cache_dir=tmp_path) is first, "memoised in process"
+    sweep.forget_artefacts()
+    assert cached_artefact("model", config, build, cache_dir=tmp_path) == first, "loaded from disk"
+    assert len(builds) == 1
+
+    sweep.forget_artefacts()
+    cached_artefact("model", ToyCell(seed=8), build, cache_dir=tmp_path)
+    assert len(builds) == 2, "another config is another artefact"
+
+
+def test_corrupted_artefact_is_rebuilt_with_a_warning(tmp_path: Path) -> None:
+    builds: list[int] = []
+
+    def build() -> list[int]:
+        builds.append(1)
+        return list(range(1000))
+
+    cached_artefact("dataset", {"episodes": 3}, build, cache_dir=tmp_path)
+    (path,) = (tmp_path / "artefacts").glob("dataset-*.pkl")
+    path.write_bytes(path.read_bytes()[:20])
+    sweep.forget_artefacts()
+    with pytest.warns(UserWarning, match=path.name):
+        value = cached_artefact("dataset", {"episodes": 3}, build, cache_dir=tmp_path)
+    assert value == list(range(1000))
+    assert len(builds) == 2
+    assert pickle.loads(path.read_bytes()) == value, "the rebuilt artefact replaced the damaged file"
+    assert [p.name for p in (tmp_path / "artefacts").iterdir()] == [path.name], "no temporary file left"
