@@ -29,7 +29,7 @@ class AdmittanceGains:
 
     def __post_init__(self) -> None:
         check_range("inertia", self.inertia, 1e-3, 100.0)
-        check_range("stiffness", self.stiffness, 1.0, 1e5)
+        check_range("stiffness", self.stiffness, 0.0, 1e5)
         check_range("damping_ratio", self.damping_ratio, 0.1, 100.0)
 
     @property

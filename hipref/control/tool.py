@@ -56,8 +56,10 @@ class ToolController:
         self.admittance.reset()
         self.force[:] = self.scene.wrist_force_world()
 
-    def run(self, target_pos: np.ndarray, target_rot: np.ndarray) -> None:
-        """One control period towards the Cartesian target (tool-tip position, tool orientation)."""
+    def run(self, target_pos: np.ndarray, target_rot: np.ndarray, substeps: int | None = None) -> None:
+        """One control period towards the Cartesian target (tool-tip position, tool orientation).
+
+        `substeps` overrides the period's physics steps, for a loop that must run faster."""
         scene = self.scene
         m, d = scene.model, scene.data
         reference = self._reference
@@ -67,10 +69,11 @@ class ToolController:
         self.q_ref = self.ik.step(d, reference, target_rot)
         force = self.force
         force[:] = 0.0
-        for _ in range(self.substeps):
+        substeps = substeps or self.substeps
+        for _ in range(substeps):
             mujoco.mj_step1(m, d)
             d.ctrl[:] = self.spd.torque(self.q_ref)
             mujoco.mj_step2(m, d)
             force += scene.wrist_force_world()
         # The wrist force over the period, averaged as a sensor's anti-aliasing filter does.
-        force /= self.substeps
+        force /= substeps

@@ -1,0 +1,134 @@
+"""Gymnasium faces of the two tasks, registered as `hipref/DeskWiping-v0` and `hipref/Pushing-v0`.
+
+Both are goal-level environments: one `step` runs the low-level policy pi^l (admittance + IK + SPD) for a
+whole stroke or push, at the simulator's 2 ms time step, given the agent's estimate of the unknown
+parameter. `reset(seed=..., options={"param": value})` sets the unknown parameter (desk height in m, cube
+mass in kg); it is drawn uniformly from its range when absent."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from hipref.envs.pushing import PushingConfig, PushingTask
+from hipref.envs.wiping import WipingConfig, WipingTask, check_parameter
+
+RESET_OPTIONS = frozenset({"param"})
+
+
+def _parameter(env: gym.Env, options: dict[str, Any] | None, bounds: tuple[float, float], name: str) -> float:
+    options = dict(options or {})
+    unknown = set(options) - RESET_OPTIONS
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {sorted(unknown)}; allowed: {sorted(RESET_OPTIONS)}")
+    if options.get("param") is None:
+        return float(env.np_random.uniform(*bounds))
+    return check_parameter(name, options["param"], bounds)
+
+
+def _checked_action(space: gym.spaces.Box, action: Any) -> np.ndarray:
+    action = np.asarray(action, dtype=np.float64).reshape(space.shape)
+    if not np.all(np.isfinite(action)):
+        raise ValueError(f"action must be finite, got {action!r}")
+    if np.any(action < space.low) or np.any(action > space.high):
+        raise ValueError(f"action must lie in [{space.low}, {space.high}], got {action!r}")
+    return action
+
+
+class DeskWipingEnv(gym.Env):
+    """Wipe a desk of unknown height.
+
+    Observation (float32, 21): joint positions (6, rad), joint velocities (6, rad/s), wrist force on the
+    sponge (3, N, world frame), the joint reference SPD tracks (6, rad), at the end of the last step.
+    Action (3): goal x, goal y on the desk (m, inside the wiping area) and the desk-height estimate (m).
+    Reward: 1 for a successful stroke (goal reached with the contact force in the safe band for most of
+    the way), else 0. An episode is truncated after `max_strokes` strokes.
+    Info: `contact_force` (mean normal force of the stroke, N), `force_max` (N), `in_band` (fraction of
+    the stroke in the safe band), `reached`, `success`, `param` (the true desk height, m)."""
+
+    metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
+
+    def __init__(self, config: WipingConfig | None = None, max_strokes: int = 20) -> None:
+        self.task = WipingTask(config)
+        cfg = self.task.config
+        self.max_strokes = max_strokes
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(21,), dtype=np.float32)
+        low = np.array([cfg.area_x[0], cfg.area_y[0], cfg.height_range[0]])
+        high = np.array([cfg.area_x[1], cfg.area_y[1], cfg.height_range[1]])
+        self.action_space = gym.spaces.Box(low, high, dtype=np.float64)
+        self._strokes = 0
+        self._observation = np.zeros(21, dtype=np.float32)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        cfg = self.task.config
+        height = _parameter(self, options, cfg.height_range, "desk height")
+        self.task.reset(height, (float(np.mean(cfg.area_x)), float(np.mean(cfg.area_y))))
+        self._strokes = 0
+        self._observation = self.task._features().astype(np.float32)
+        return self._observation.copy(), {"param": height}
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        goal_x, goal_y, estimate = _checked_action(self.action_space, action)
+        stroke = self.task.stroke(np.array([goal_x, goal_y]), float(estimate))
+        self._strokes += 1
+        self._observation = stroke.features[-1].astype(np.float32)
+        info = {
+            "contact_force": float(stroke.force.mean()),
+            "force_max": float(stroke.force.max()),
+            "in_band": stroke.in_band,
+            "reached": stroke.reached,
+            "success": stroke.success,
+            "param": self.task.height,
+        }
+        return self._observation.copy(), float(stroke.success), False, self._strokes >= self.max_strokes, info
+
+
+class PushingEnv(gym.Env):
+    """Push a cube of unknown mass to a goal.
+
+    Observation (float32, 16): cube position on the desk (2, m), goal position (2, m), joint positions
+    (6, rad), joint velocities (6, rad/s).
+    Action (1): the cube-mass estimate (kg) the push is planned with. One step is one push; the episode
+    then terminates. Reward: 1 when the cube rests within the goal tolerance, else 0.
+    Info: `final_error` (m, distance from cube to goal), `contact_force` (largest push force at the wrist,
+    N), `success`, `param` (the true cube mass, kg)."""
+
+    metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
+
+    def __init__(self, config: PushingConfig | None = None) -> None:
+        self.task = PushingTask(config)
+        cfg = self.task.config
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(16,), dtype=np.float32)
+        self.action_space = gym.spaces.Box(
+            np.array([cfg.mass_range[0]]), np.array([cfg.mass_range[1]]), dtype=np.float64
+        )
+
+    def _observe(self) -> np.ndarray:
+        scene = self.task.scene
+        d = scene.data
+        cube = d.qpos[scene.cube_qpos : scene.cube_qpos + 2]
+        return np.concatenate([cube, self.task.goal, d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof]]).astype(
+            np.float32
+        )
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        mass = _parameter(self, options, self.task.config.mass_range, "cube mass")
+        start, goal = self.task.sample_layout(self.np_random)
+        self.task.reset(mass, start, goal)
+        return self._observe(), {"param": mass}
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        (estimate,) = _checked_action(self.action_space, action)
+        push = self.task.push(float(estimate))
+        forces = np.linalg.norm(push.features[:, 12:15], axis=1)
+        info = {
+            "final_error": push.final_error,
+            "contact_force": float(forces.max()),
+            "success": push.success,
+            "param": self.task.mass,
+        }
+        return self._observe(), float(push.success), True, False, info
