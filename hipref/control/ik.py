@@ -9,6 +9,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from hipref.control.linalg import SPDSolver
 from hipref.sim.scene import Scene
 
 DAMPING = 1e-4
@@ -32,17 +33,18 @@ class ToolIK:
         self._jacr = np.zeros((3, nv))
         self._jac = np.zeros((6, 6))
         self._error = np.zeros(6)
+        self._damping = DAMPING * np.eye(6)
+        self._solver = SPDSolver(6)
 
     def _pose_error(self, data: mujoco.MjData, target_pos: np.ndarray, target_rot: np.ndarray) -> np.ndarray:
         site = self.scene.tool_tip
         rot = data.site_xmat[site].reshape(3, 3)
         self._error[:3] = target_pos - data.site_xpos[site]
-        # Small-angle orientation error: half the sum of the cross products of matching axes.
-        self._error[3:] = 0.5 * (
-            np.cross(rot[:, 0], target_rot[:, 0])
-            + np.cross(rot[:, 1], target_rot[:, 1])
-            + np.cross(rot[:, 2], target_rot[:, 2])
-        )
+        # Small-angle orientation error, the axis-angle vector of target_rot @ rot.T (world frame).
+        s = target_rot @ rot.T
+        self._error[3] = 0.5 * (s[2, 1] - s[1, 2])
+        self._error[4] = 0.5 * (s[0, 2] - s[2, 0])
+        self._error[5] = 0.5 * (s[1, 0] - s[0, 1])
         return self._error
 
     def step(self, data: mujoco.MjData, target_pos: np.ndarray, target_rot: np.ndarray) -> np.ndarray:
@@ -55,7 +57,7 @@ class ToolIK:
         jac = self._jac
         jac[:3] = self._jacp[:, scene.arm_dof]
         jac[3:] = self._jacr[:, scene.arm_dof]
-        dq = jac.T @ np.linalg.solve(jac @ jac.T + DAMPING * np.eye(6), error)
+        dq = jac.T @ self._solver.solve(jac @ jac.T + self._damping, error)
         return data.qpos[scene.arm_qpos] + dq
 
     def solve(

@@ -9,6 +9,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from hipref.control.linalg import SPDSolver
 from hipref.sim.scene import Scene
 
 
@@ -27,7 +28,9 @@ class SPD:
         if not np.array_equal(dofs, np.arange(dofs[0], dofs[0] + len(dofs))):
             raise ValueError("the arm's degrees of freedom must be contiguous")
         self._dofs = slice(int(dofs[0]), int(dofs[0]) + len(dofs))
+        self._mass = self._full_mass[self._dofs, self._dofs]  # a view, refreshed by mj_fullM
         self._kd_dt = np.diag(self.kd * self.dt)
+        self._solver = SPDSolver(len(dofs))
 
     def torque(self, q_ref: np.ndarray) -> np.ndarray:
         """Eq. 5 with the acceleration of Eq. 6, towards the joint reference q-bar^{n+1} = q_ref."""
@@ -35,13 +38,12 @@ class SPD:
         q = d.qpos[dofs]  # the arm's qpos and qvel addresses coincide with its dof addresses
         qdot = d.qvel[dofs]
         mujoco.mj_fullM(m, d, self._full_mass)
-        mass = self._full_mass[dofs, dofs]
         # c: Coriolis, centrifugal and gravitational forces net of the simulator's gravity compensation.
         c = d.qfrc_bias[dofs] - d.qfrc_passive[dofs]
         # tau_ext: contact and other constraint forces on the joints, as measured at the last step.
         tau_ext = d.qfrc_constraint[dofs]
         position_term = self.kp * (q + qdot * dt - q_ref)
         # Eq. 6: q''^n = (M + kd dt)^-1 (-c - kp (q^n + q'^n dt - qbar^{n+1}) - kd q'^n + tau_ext)
-        qddot = np.linalg.solve(mass + self._kd_dt, -c - position_term - self.kd * qdot + tau_ext)
+        qddot = self._solver.solve(self._mass + self._kd_dt, tau_ext - c - position_term - self.kd * qdot)
         # Eq. 5: tau = -kp (q^n + q'^n dt - qbar^{n+1}) - kd (q'^n + q''^n dt)
         return -position_term - self.kd * (qdot + qddot * dt)

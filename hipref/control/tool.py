@@ -47,6 +47,7 @@ class ToolController:
         self.substeps = scene.config.control_substeps
         self.q_ref = np.zeros(6)
         self._reference = np.zeros(3)
+        self._sensed = np.zeros(3)
         self.force = np.zeros(3)
         """Contact force on the tool in the world frame, averaged over the last control period."""
 
@@ -67,13 +68,14 @@ class ToolController:
         if self.compliant:
             reference[2] = self.admittance.update(target_pos[2], self.force[2])
         self.q_ref = self.ik.step(d, reference, target_rot)
-        force = self.force
-        force[:] = 0.0
         substeps = substeps or self.substeps
+        sensed = self._sensed
+        sensed[:] = 0.0
+        reading = d.sensordata[scene.force_adr : scene.force_adr + 3]
         for _ in range(substeps):
             mujoco.mj_step1(m, d)
             d.ctrl[:] = self.spd.torque(self.q_ref)
             mujoco.mj_step2(m, d)
-            force += scene.wrist_force_world()
+            sensed += reading
         # The wrist force over the period, averaged as a sensor's anti-aliasing filter does.
-        force /= substeps
+        self.force[:] = scene.wrist_force_world(sensed / substeps)

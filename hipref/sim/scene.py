@@ -154,13 +154,14 @@ class Scene:
         self.model.body_mass[self.cube_body] = mass
         self.model.body_inertia[self.cube_body] = self._cube_unit_inertia * mass
 
-    def wrist_force_world(self) -> np.ndarray:
+    def wrist_force_world(self, reading: np.ndarray | None = None) -> np.ndarray:
         """The force the environment exerts on the tool, in the world frame, from the wrist F/T sensor.
 
         MuJoCo's force sensor reports, in the sensor frame, the force the tool exerts on its parent (the
-        flange), its weight included; the sensor is tared by that weight, as a real one is."""
+        flange), its weight included; the sensor is tared by that weight, as a real one is. `reading`
+        replaces the current sensor value (e.g. by an average over a control period)."""
         d = self.data
-        local = d.sensordata[self.force_adr : self.force_adr + 3]
+        local = d.sensordata[self.force_adr : self.force_adr + 3] if reading is None else reading
         return -(d.site_xmat[self.ft_site].reshape(3, 3) @ local) - self._tool_weight
 
 
