@@ -89,18 +89,22 @@ class TabularCoach:
         """The most probable action in s (ties: the lowest index), for evaluation."""
         return int(np.argmax(self.theta[self._row(state)]))
 
+    def _check_action(self, action: object) -> int:
+        if not isinstance(action, numbers.Integral) or isinstance(action, bool | np.bool_):
+            raise ValueError(f"action must be an integer in [0, {self.n_actions - 1}], got {action!r}")
+        check_int("action", int(action), 0, self.n_actions - 1)
+        return int(action)
+
     def ask(self, state: Hashable, action: int) -> FeedbackQuery:
         """The question to put to a teacher about taking `action` in `state`."""
         self._row(state)
-        check_int("action", int(action), 0, self.n_actions - 1)
-        return FeedbackQuery(state=state, action=int(action))
+        return FeedbackQuery(state=state, action=self._check_action(action))
 
     def tell(self, query: FeedbackQuery, feedback: int) -> None:
         """Apply the teacher's feedback f in {-1, 0, 1} on the queried (state, action)."""
         f = validate_feedback(feedback)
         s = self._row(query.state)
-        a = int(query.action)
-        check_int("action", a, 0, self.n_actions - 1)
+        a = self._check_action(query.action)
         # Eq. 1: grad_theta[s] log pi(a|s) for a softmax row is onehot(a) - pi(.|s).
         grad_log_pi = -self.probabilities(query.state)
         grad_log_pi[a] += 1.0

@@ -43,7 +43,9 @@ class CoPESIConfig(PESIConfig):
     ramp_steps: int = 10
     """Co-teaching steps over which the forget rate rises linearly from 0 to its final value. The paper is
     silent; Han et al. ramp it over their first 10 epochs, because networks fit clean data first and
-    early losses say little. 0 forgets the full amount from the first step."""
+    early losses say little. Counted from the first co-teaching step and not restarted at a refresh (a
+    restart would keep the forget rate low for most of each short refresh period). 0 forgets the full
+    amount from the first step."""
     rounds: int = 1
     """t: co-teaching rounds (Alg. 1 l.9-14: sample, select, cross-update, update SI) per preference."""
 

@@ -32,6 +32,11 @@ def pesi_loss(log_probs_pair: torch.Tensor, y: torch.Tensor, encourage_percentag
     y: (B,) in {-1, 1}, 1 meaning phi_0 preferred. The weights Pr + p y are constants (detached): the
     target is the model's own current belief with p moved from the dispreferred to the preferred candidate,
     so the preferred is encouraged and the other discouraged, by an amount set by p.
+
+    Pr is SI's distribution over all of Phi, as written, so the two weights sum to Pr(phi_0) + Pr(phi_1) < 1
+    and the loss also pulls mass from unqueried candidates onto the queried pair in proportion to their
+    probabilities. With p = 0 that is all it does: the label is then ignored and the queried pair's order is
+    kept; only p turns the label into a change of ranking.
     """
     if not torch.all((y == 1) | (y == -1)):
         raise ValueError(f"y must contain only -1 and 1, got {y.tolist()!r}")
@@ -149,7 +154,7 @@ class PESILearner:
         return float(self.model.predict(self._check_features(features)))
 
     def ask(self, features: np.ndarray) -> PreferenceQuery:
-        """Alg. 2 l.2: draw N distinct candidates for the slice `features` and ask which is best.
+        """Alg. 2 'phi_0, phi_1 sampled from Phi': draw N distinct candidates for `features` and ask.
 
         The candidates are drawn from SI's own Pr(phi | features) (mixed with a little uniform), so queries
         concentrate where the model is unsure between plausible values, where an answer changes the
@@ -165,7 +170,7 @@ class PESILearner:
         return PreferenceQuery(candidates=tuple(self.candidates.values[chosen]), features=features)
 
     def tell(self, query: PreferenceQuery, label: int | np.ndarray) -> None:
-        """Alg. 2 l.4-5: store the preference in D and update SI (refuses a malformed label or query)."""
+        """Alg. 2 'ask for preference y, update SI': store it in D, learn (refuses a malformed label)."""
         if len(query.candidates) != self.config.n_candidates:
             raise ValueError(
                 f"query must have n_candidates={self.config.n_candidates} candidates, "
@@ -179,7 +184,7 @@ class PESILearner:
         self._learn()
 
     def _learn(self) -> None:
-        # Alg. 2 l.5: update SI, here on a minibatch from D so one answer is not all a step sees.
+        # Alg. 2 'update SI by Eqn. 2', here on a minibatch from D so one answer is not all a step sees.
         self._update_si(self._sample_batch())
 
     def _sample_batch(self) -> np.ndarray:

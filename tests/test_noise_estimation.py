@@ -1,0 +1,101 @@
+"""Algorithm 5: noise estimated as the fraction of preferences with at least the mean number of conflicts."""
+
+import itertools
+import time
+
+import numpy as np
+import pytest
+
+from hipref.learners.noise_estimation import (
+    PreferenceSet,
+    conflict_counts,
+    estimate_noise,
+    random_preferences,
+)
+from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT
+
+
+def _conflict(first: tuple[float, float, int], second: tuple[float, float, int]) -> bool:
+    """Reference definition: no parameter is strictly nearer each preferred value than its rival."""
+    grid = np.linspace(7.0, 21.0, 1401)  # 0.01 kg steps: inside any open interval between 0.125 kg midpoints
+
+    def satisfied(pref: tuple[float, float, int]) -> np.ndarray:
+        a, b, y = pref
+        winner, loser = (a, b) if y == 1 else (b, a)
+        return np.abs(grid - winner) < np.abs(grid - loser)
+
+    return not np.any(satisfied(first) & satisfied(second))
+
+
+def test_hand_built_dataset_gives_the_fraction_computed_by_hand() -> None:
+    # Each preference bounds the true height: (a, b, y=1) means a is preferred.
+    preferences = [
+        (0.5, 0.6, 1),  # h < 0.55
+        (0.5, 0.6, -1),  # h > 0.55: the paper's example, conflicts with the first
+        (0.7, 0.8, 1),  # h < 0.75
+        (0.6, 0.9, -1),  # h > 0.75
+        (0.8, 0.9, -1),  # h > 0.85
+        (0.5, 0.9, -1),  # h > 0.7
+    ]
+    # Conflicts: 0-1, 0-3, 0-4, 0-5, 2-3, 2-4 -> C = [4, 1, 2, 2, 2, 1], mean 2, four entries >= 2.
+    data = PreferenceSet(*map(np.array, zip(*preferences, strict=True)))
+    np.testing.assert_array_equal(conflict_counts(data), [4, 1, 2, 2, 2, 1])
+    assert estimate_noise(data) == pytest.approx(4 / 6)
+
+
+def test_conflict_counts_match_the_pairwise_double_loop_of_the_pseudo_code() -> None:
+    rng = np.random.default_rng(0)
+    data = random_preferences(40, 0.3, CUBE_MASS, rng)
+    rows = list(zip(data.first, data.second, data.label.astype(int), strict=True))
+    expected = np.zeros(len(rows), dtype=int)
+    for i, j in itertools.combinations(range(len(rows)), 2):
+        if _conflict(rows[i], rows[j]):
+            expected[i] += 1
+            expected[j] += 1
+    np.testing.assert_array_equal(conflict_counts(data), expected)
+    assert expected.sum() > 0
+
+
+def test_noise_free_data_has_no_conflicts_and_an_estimate_of_one() -> None:
+    data = random_preferences(256, 0.0, DESK_HEIGHT, np.random.default_rng(1))
+    assert not conflict_counts(data).any()
+    assert estimate_noise(data) == 1.0
+
+
+def test_random_preferences_flip_labels_at_the_true_noise_rate() -> None:
+    rng = np.random.default_rng(2)
+    flipped = []
+    for _ in range(50):
+        state = rng.bit_generator.state
+        noisy = random_preferences(256, 0.25, DESK_HEIGHT, rng)
+        rng.bit_generator.state = state
+        clean = random_preferences(256, 0.0, DESK_HEIGHT, rng)
+        np.testing.assert_array_equal(noisy.first, clean.first)
+        assert np.all(noisy.first != noisy.second)
+        flipped.append(np.mean(noisy.label != clean.label))
+    n = 50 * 256
+    assert abs(np.mean(flipped) - 0.25) < 4 * np.sqrt(0.25 * 0.75 / n)
+
+
+def test_noisier_data_gives_higher_estimates_and_a_table3_run_is_fast() -> None:
+    rng = np.random.default_rng(3)
+    start = time.perf_counter()
+    means = [
+        np.mean([estimate_noise(random_preferences(256, noise, DESK_HEIGHT, rng)) for _ in range(100)])
+        for noise in (0.1, 0.4)
+    ]
+    assert time.perf_counter() - start < 5.0
+    assert means[0] < means[1] < 1.0
+
+
+def test_invalid_preference_sets_are_refused() -> None:
+    with pytest.raises(ValueError, match="different values"):
+        PreferenceSet(np.array([0.5]), np.array([0.5]), np.array([1]))
+    with pytest.raises(ValueError, match="label"):
+        PreferenceSet(np.array([0.5]), np.array([0.6]), np.array([0]))
+    with pytest.raises(ValueError, match="equal length"):
+        PreferenceSet(np.array([0.5, 0.6]), np.array([0.6]), np.array([1]))
+    with pytest.raises(ValueError, match="at least one"):
+        estimate_noise(PreferenceSet(np.array([]), np.array([]), np.array([])))
+    with pytest.raises(ValueError, match=r"true_noise .*1.5"):
+        random_preferences(10, 1.5, DESK_HEIGHT, np.random.default_rng())

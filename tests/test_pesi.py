@@ -1,0 +1,194 @@
+"""PESI: the soft cross-entropy of Eq. 2 / Eq. 3, the standard-CE ablation, and Algorithm 2 via ask/tell."""
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+import torch
+from torch import nn
+
+from hipref.learners.pesi import PESIConfig, PESILearner, pesi_loss, pesi_loss_n, standard_ce_loss
+from hipref.learners.sysid import DESK_HEIGHT, SIModel
+from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
+
+
+@pytest.fixture(autouse=True)
+def _single_thread() -> Iterator[None]:
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+class LogitTable(nn.Module):
+    """A model that is nothing but its logits, so a gradient step acts on the distribution directly."""
+
+    def __init__(self, logits: torch.Tensor) -> None:
+        super().__init__()
+        self.logits = nn.Parameter(logits.clone())
+
+    def forward(self) -> torch.Tensor:
+        return torch.log_softmax(self.logits, dim=-1)
+
+
+def _sgd_steps(table: LogitTable, pair: list[int], y: float, p: float, steps: int = 1) -> None:
+    optimiser = torch.optim.SGD(table.parameters(), lr=0.5)
+    for _ in range(steps):
+        loss = pesi_loss(table()[pair].unsqueeze(0), torch.tensor([y]), p)
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+
+
+@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("y", [1.0, -1.0])
+def test_eq2_step_moves_mass_toward_the_preferred_candidate_and_away_from_the_other(
+    seed: int, y: float
+) -> None:
+    rng = np.random.default_rng(seed)
+    table = LogitTable(torch.as_tensor(rng.normal(size=41), dtype=torch.float32))
+    pair = [int(i) for i in rng.choice(41, size=2, replace=False)]
+    preferred, other = (pair[0], pair[1]) if y == 1 else (pair[1], pair[0])
+    before = table().exp().detach()
+    _sgd_steps(table, pair, y, p=0.25)
+    after = table().exp().detach()
+    assert after[preferred] > before[preferred]
+    assert after[other] < before[other]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_zero_encouragement_ignores_the_label_and_leaves_the_argmax_unchanged(seed: int) -> None:
+    # With p = 0 the targets are the model's own Pr: the label has no effect, and the step only moves mass
+    # from unqueried candidates to the queried ones in proportion to their probability, so the mode stays
+    # the mode whenever it is one of the queried candidates (PESI draws queries from Pr, so it often is).
+    rng = np.random.default_rng(seed)
+    logits = torch.as_tensor(rng.normal(size=41), dtype=torch.float32)
+    leaf = logits.clone().requires_grad_()
+    grads = []
+    for y in (1.0, -1.0):
+        loss = pesi_loss(torch.log_softmax(leaf, dim=-1)[[3, 9]].unsqueeze(0), torch.tensor([y]), 0.0)
+        grads.append(torch.autograd.grad(loss, leaf)[0])
+    torch.testing.assert_close(grads[0], grads[1])
+    table = LogitTable(logits)
+    mode = int(table().argmax())
+    for _ in range(20):
+        other = int(rng.choice([i for i in range(41) if i != mode]))
+        pair = [mode, other] if rng.random() < 0.5 else [other, mode]
+        _sgd_steps(table, pair, float(rng.choice([-1.0, 1.0])), p=0.0)
+        assert int(table().argmax()) == mode
+
+
+def test_eq3_with_two_candidates_equals_eq2_in_value_and_gradient() -> None:
+    logits = torch.randn(8, 41, requires_grad=True)
+    pairs = torch.stack([torch.randperm(41)[:2] for _ in range(8)])
+    y = torch.tensor([1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, -1.0])
+    log_probs = torch.log_softmax(logits, dim=-1).gather(1, pairs)
+    eq2 = pesi_loss(log_probs, y, 0.25)
+    (grad_eq2,) = torch.autograd.grad(eq2, logits, retain_graph=True)
+    eq3 = pesi_loss_n(log_probs, torch.stack([y, -y], dim=1), 0.25)
+    (grad_eq3,) = torch.autograd.grad(eq3, logits)
+    torch.testing.assert_close(eq2, eq3)
+    torch.testing.assert_close(grad_eq2, grad_eq3)
+
+
+def test_eq3_moves_weight_to_the_preferred_candidate_without_changing_the_total() -> None:
+    log_probs = torch.log_softmax(torch.randn(1, 41), dim=-1)[:, :4]
+    y_vec = torch.tensor([[-1 / 3, -1 / 3, 1.0, -1 / 3]])
+    probs = log_probs.exp()
+    weights = probs + 0.25 * y_vec  # the weights of our reading of Eq. 3
+    torch.testing.assert_close(weights.sum(), probs.sum())
+    torch.testing.assert_close(weights - probs, torch.tensor([[-0.25 / 3, -0.25 / 3, 0.25, -0.25 / 3]]))
+    expected = -(log_probs * weights).sum()
+    torch.testing.assert_close(pesi_loss_n(log_probs, y_vec, 0.25), expected)
+
+
+def test_standard_ce_is_cross_entropy_among_the_queried_candidates() -> None:
+    log_probs = torch.log(torch.tensor([[0.1, 0.3, 0.05]]))
+    loss = standard_ce_loss(log_probs, torch.tensor([[-0.5, -0.5, 1.0]]))
+    torch.testing.assert_close(loss, -torch.log(torch.tensor(0.05 / 0.45)))
+
+
+def test_eq2_refuses_labels_outside_minus_one_one() -> None:
+    with pytest.raises(ValueError, match="y must contain only"):
+        pesi_loss(torch.zeros(2, 2), torch.tensor([1.0, 0.0]), 0.25)
+
+
+def _learner(seed: int = 0, **config: object) -> PESILearner:
+    model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(32, 16), seed=seed)
+    return PESILearner(model, PESIConfig(**config), seed=seed)
+
+
+@pytest.mark.parametrize("label", [0, 2, -2, 0.5, math.nan, True, None, "1", [1, 1]])
+def test_tell_refuses_a_label_outside_minus_one_one(label: object) -> None:
+    learner = _learner()
+    query = learner.ask(np.ones(4))
+    with pytest.raises(ValueError, match="preference over 2 candidates"):
+        learner.tell(query, label)
+    assert len(learner) == 0
+
+
+def test_tell_refuses_queries_it_cannot_have_asked() -> None:
+    learner = _learner()
+    with pytest.raises(ValueError, match="candidate"):
+        learner.tell(PreferenceQuery((0.5, 0.555), np.ones(4)), 1)
+    with pytest.raises(ValueError, match="n_candidates=2"):
+        learner.tell(PreferenceQuery((0.5, 0.6, 0.7), np.ones(4)), np.array([1.0, -0.5, -0.5]))
+    with pytest.raises(ValueError, match="features"):
+        learner.tell(PreferenceQuery((0.5, 0.6), np.ones(3)), 1)
+
+
+def test_queries_are_distinct_candidates_from_phi_and_reproducible() -> None:
+    queries = []
+    for _ in range(2):
+        learner = _learner(seed=7, n_candidates=3)
+        queries.append([learner.ask(np.full(4, float(i))).candidates for i in range(20)])
+    assert queries[0] == queries[1]
+    for candidates in queries[0]:
+        assert len(set(candidates)) == 3
+        for c in candidates:
+            DESK_HEIGHT.index_of(c)
+
+
+@pytest.mark.parametrize(("loss", "n_candidates"), [("soft", 2), ("soft", 3), ("standard", 2)])
+def test_noise_free_preferences_reduce_the_estimate_error(loss: str, n_candidates: int) -> None:
+    true_height = 0.843
+    learner = _learner(seed=1, loss=loss, n_candidates=n_candidates)
+    teacher = ScriptedPreferenceTeacher(true_height, 0.0, np.random.default_rng(2))
+    features = np.array([0.3, -1.0, 2.0, 0.5])
+    initial_error = abs(learner.estimate(features) - true_height)
+    for _ in range(200):
+        query = learner.ask(features)
+        learner.tell(query, teacher.answer(query))
+    final_error = abs(learner.estimate(features) - true_height)
+    assert len(learner) == 200
+    assert initial_error > 0.1
+    assert final_error < 0.5 * initial_error
+
+
+def test_the_learner_fine_tunes_a_copy_of_the_model() -> None:
+    model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(8,), seed=0)
+    learner = PESILearner(model, PESIConfig(), seed=0)
+    features = np.ones(4)
+    before = model.predict(features)
+    teacher = ScriptedPreferenceTeacher(0.9, 0.0, np.random.default_rng(0))
+    for _ in range(5):
+        query = learner.ask(features)
+        learner.tell(query, teacher.answer(query))
+    assert model.predict(features) == before
+    assert learner.estimate(features) != float(before)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"loss": "hinge"}, "loss must be one of"),
+        ({"encourage_percentage": -0.1}, "encourage_percentage"),
+        ({"batch_size": 0}, "batch_size"),
+        ({"n_candidates": 1}, "n_candidates"),
+        ({"query_uniform_mix": 0.0}, "query_uniform_mix"),
+    ],
+)
+def test_invalid_config_is_refused(kwargs: dict[str, object], message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        PESIConfig(**kwargs)
