@@ -1,0 +1,167 @@
+"""The controllers study (notebook 05): paper A.8 / Fig. 7, and how much the unknown parameter matters.
+
+1. Controller ablation: desk at 0.81 m, the wiping policy given desired heights 0.72-0.80 m, the same
+   start and the same random trajectory on the desk for plain SPD and for admittance + SPD; the z-axis
+   wrist force's mean and standard deviation (`force_mean`, `force_std`).
+2. Success against estimate error: each task executed with the true parameter plus an error; the
+   fraction of successes at each error (`success_rate`) is what gives the SI studies their meaning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from hipref.envs.pushing import PushingTask
+from hipref.envs.wiping import WipingTask
+from hipref.sweep import run_sweep
+from hipref.validation import check_int, check_range
+
+
+@dataclass(frozen=True)
+class ControllersConfig:
+    """Parameters of notebook 05 (defaults: the quick profile; the paper's values where it gives them)."""
+
+    desk_height: float = 0.81
+    """True desk height of the ablation in m (A.8)."""
+    desired_heights: tuple[float, ...] = (0.72, 0.74, 0.76, 0.78, 0.80)
+    """Desk heights the controllers are told, in m (A.8)."""
+    trajectory_goals: int = 6
+    """Random goals on the desk that make up the ablation's shared trajectory."""
+    ablation_seeds: int = 3
+    """Random trajectories per desired height and controller."""
+    height_errors: tuple[float, ...] = tuple(np.round(np.arange(-0.06, 0.0601, 0.01), 2))
+    """Errors of the desk-height estimate in m for the success curve."""
+    mass_errors: tuple[float, ...] = tuple(float(e) for e in range(-6, 7))
+    """Errors of the cube-mass estimate in kg for the success curve."""
+    curve_seeds: int = 20
+    """Random episodes (parameter, start and goal) per estimate error."""
+    seed: int = 0
+    """Root seed; every episode's seed derives from it."""
+
+    def __post_init__(self) -> None:
+        check_range("desk_height", self.desk_height, 0.5, 0.9)
+        for h in self.desired_heights:
+            check_range("desired_heights", h, 0.5, 0.9)
+        check_int("trajectory_goals", self.trajectory_goals, 1, 100)
+        check_int("ablation_seeds", self.ablation_seeds, 1, 1000)
+        check_int("curve_seeds", self.curve_seeds, 1, 10000)
+        check_int("seed", self.seed, 0)
+        for e in self.height_errors:
+            check_range("height_errors", e, -0.2, 0.2)
+        for e in self.mass_errors:
+            check_range("mass_errors", e, -12.0, 12.0)
+
+
+@dataclass(frozen=True)
+class AblationCell:
+    """One controller following one random trajectory under one desired height."""
+
+    method: str
+    desk_height: float
+    desired_height: float
+    trajectory_goals: int
+    seed: int
+
+
+@dataclass(frozen=True)
+class CurveCell:
+    """One episode of one task executed with the true parameter plus `error`."""
+
+    domain: str
+    error: float
+    seed: int
+
+
+def _rows(domain: str, method: str, seed: int, metrics: dict[str, float], **extra: float) -> pd.DataFrame:
+    return pd.DataFrame(
+        [
+            {
+                "domain": domain,
+                "method": method,
+                "noise": 0.0,
+                "seed": seed,
+                "episode": 0,
+                "metric": name,
+                "value": float(value),
+                **extra,
+            }
+            for name, value in metrics.items()
+        ]
+    )
+
+
+def run_ablation_cell(cell: AblationCell) -> pd.DataFrame:
+    """Follow the cell's random trajectory; the z force over every stroke (A.8, Fig. 7)."""
+    task = WipingTask(compliant=cell.method == "admittance")
+    rng = np.random.default_rng(cell.seed)
+    cfg = task.config
+    goals = rng.uniform(
+        [cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], (cell.trajectory_goals, 2)
+    )
+    task.reset(cell.desk_height, (0.0, 0.05))
+    forces = np.concatenate([task.stroke(goal, cell.desired_height).force for goal in goals])
+    return _rows(
+        "wiping",
+        cell.method,
+        cell.seed,
+        {"force_mean": forces.mean(), "force_std": forces.std()},
+        desired_height=cell.desired_height,
+    )
+
+
+def run_curve_cell(cell: CurveCell) -> pd.DataFrame:
+    """One episode with a parameter drawn from its range and the estimate off by `cell.error`."""
+    rng = np.random.default_rng(cell.seed)
+    if cell.domain == "wiping":
+        wiping = WipingTask()
+        low, high = wiping.config.height_range
+        height = rng.uniform(low, high)
+        estimate = float(np.clip(height + cell.error, low, high))
+        cfg = wiping.config
+        start, goal = rng.uniform([cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], (2, 2))
+        wiping.reset(height, tuple(start))
+        success = wiping.stroke(goal, estimate).success
+    else:
+        pushing = PushingTask()
+        low, high = pushing.config.mass_range
+        mass = rng.uniform(low, high)
+        estimate = float(np.clip(mass + cell.error, low, high))
+        start, goal = pushing.sample_layout(rng)
+        pushing.reset(mass, start, goal)
+        success = pushing.push(estimate).success
+    return _rows(cell.domain, "admittance", cell.seed, {"success_rate": success}, estimate_error=cell.error)
+
+
+def _seeds(root: int, label: int, count: int) -> list[int]:
+    """Per-episode seeds from numpy's SeedSequence: independent streams, reproducible from the root."""
+    children = np.random.SeedSequence([root, label]).spawn(count)
+    return [int(child.generate_state(1)[0]) for child in children]
+
+
+def run_ablation(config: ControllersConfig, **sweep: object) -> pd.DataFrame:
+    seeds = _seeds(config.seed, 5, config.ablation_seeds)
+    cells = [
+        AblationCell(method, config.desk_height, h, config.trajectory_goals, seed)
+        for method in ("spd", "admittance")
+        for h in config.desired_heights
+        for seed in seeds
+    ]
+    return run_sweep(run_ablation_cell, cells, desc="Fig. 7 ablation", **sweep)
+
+
+def run_curves(config: ControllersConfig, **sweep: object) -> pd.DataFrame:
+    cells = [
+        CurveCell(domain, float(error), seed)
+        for domain, errors, label in (("wiping", config.height_errors, 1), ("pushing", config.mass_errors, 2))
+        for error in errors
+        for seed in _seeds(config.seed, label, config.curve_seeds)
+    ]
+    return run_sweep(run_curve_cell, cells, desc="success vs estimate error", **sweep)
+
+
+def run(config: ControllersConfig, **sweep: object) -> pd.DataFrame:
+    """Both parts of the study, as one tidy frame."""
+    return pd.concat([run_ablation(config, **sweep), run_curves(config, **sweep)], ignore_index=True)

