@@ -89,8 +89,10 @@ def main() -> None:
         "pushing": bench_pushing(args.repeats),
         "mujoco": mujoco.__version__,
     }
-    rounded = {k: {n: round(x, 3 if n == "ratio" else 0) for n, x in v.items()} if isinstance(v, dict) else v
-               for k, v in result.items()}
+    rounded = {
+        k: {n: round(x, 3 if n == "ratio" else 0) for n, x in v.items()} if isinstance(v, dict) else v
+        for k, v in result.items()
+    }
     print(json.dumps(rounded))
 
 

@@ -88,8 +88,13 @@ def test_check_env_passes(env_id: str) -> None:
 
 
 @pytest.mark.parametrize(
-    ("env_id", "bad"), [("hipref/DeskWiping-v0", 0.95), ("hipref/DeskWiping-v0", float("nan")),
-                        ("hipref/Pushing-v0", 7.9), ("hipref/Pushing-v0", float("inf"))]
+    ("env_id", "bad"),
+    [
+        ("hipref/DeskWiping-v0", 0.95),
+        ("hipref/DeskWiping-v0", float("nan")),
+        ("hipref/Pushing-v0", 7.9),
+        ("hipref/Pushing-v0", float("inf")),
+    ],
 )
 def test_a_parameter_out_of_range_or_not_finite_is_refused(env_id: str, bad: float) -> None:
     env = gym.make(env_id).unwrapped

@@ -54,8 +54,8 @@ class Admittance:
         """Advance Eq. 7 by one control period; returns the compliant reference height x_d."""
         g, dt = self.gains, self.dt
         # v' = (F - D v' - K (e + dt v')) / M solved for the new rate v', then e' = e + dt v'.
-        self.offset_rate = (g.inertia * self.offset_rate + dt * (external_force_z - g.stiffness * self.offset)) / (
-            g.inertia + g.damping * dt + g.stiffness * dt * dt
-        )
+        self.offset_rate = (
+            g.inertia * self.offset_rate + dt * (external_force_z - g.stiffness * self.offset)
+        ) / (g.inertia + g.damping * dt + g.stiffness * dt * dt)
         self.offset += self.offset_rate * dt
         return desired_z + self.offset

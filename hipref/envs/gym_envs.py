@@ -61,7 +61,9 @@ class DeskWipingEnv(gym.Env):
         self._strokes = 0
         self._observation = np.zeros(21, dtype=np.float32)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         cfg = self.task.config
         height = _parameter(self, options, cfg.height_range, "desk height")
@@ -114,7 +116,9 @@ class PushingEnv(gym.Env):
             np.float32
         )
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         mass = _parameter(self, options, self.task.config.mass_range, "cube mass")
         start, goal = self.task.sample_layout(self.np_random)

@@ -66,7 +66,9 @@ class WipingConfig:
         if not 0 <= self.force_band[0] < self.force_band[1]:
             raise ValueError(f"force_band must be (low, high) with 0 <= low < high, got {self.force_band!r}")
         if not self.height_range[1] + 0.03 <= self.hover_height <= 1.2:
-            raise ValueError(f"hover_height must be in [{self.height_range[1] + 0.03}, 1.2], got {self.hover_height}")
+            raise ValueError(
+                f"hover_height must be in [{self.height_range[1] + 0.03}, 1.2], got {self.hover_height}"
+            )
 
 
 @dataclass

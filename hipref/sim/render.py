@@ -12,6 +12,6 @@ def still_frame(model: mujoco.MjModel, data: mujoco.MjData, camera: str = "overv
         with mujoco.Renderer(model, height=480, width=640) as renderer:
             renderer.update_scene(data, camera=camera)
             return renderer.render().copy()
-    except Exception as error:  # noqa: BLE001 - any GL failure means: no rendering on this machine
+    except Exception as error:  # any GL failure means: no rendering on this machine
         print(f"Rendering skipped: no OpenGL context available ({type(error).__name__}: {error}).")
         return None

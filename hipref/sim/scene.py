@@ -71,8 +71,12 @@ def build_spec(config: SceneConfig, *, with_cube: bool) -> mujoco.MjSpec:
     world.add_light(pos=[0, 0, 3], dir=[0, 0, -1], diffuse=[0.6, 0.6, 0.6])
     pedestal_height = config.base_pos[2]
     world.add_geom(
-        name="pedestal", type=mujoco.mjtGeom.mjGEOM_CYLINDER, contype=0, conaffinity=0,
-        size=[0.07, pedestal_height / 2, 0], pos=[config.base_pos[0], config.base_pos[1], pedestal_height / 2],
+        name="pedestal",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        contype=0,
+        conaffinity=0,
+        size=[0.07, pedestal_height / 2, 0],
+        pos=[config.base_pos[0], config.base_pos[1], pedestal_height / 2],
         rgba=[0.3, 0.3, 0.35, 1],
     )
 
@@ -81,8 +85,11 @@ def build_spec(config: SceneConfig, *, with_cube: bool) -> mujoco.MjSpec:
     half = np.asarray(config.table_size) / 2
     desk = world.add_body(name="desk", pos=[0, 0, 0.7 - half[2]])
     desk.add_geom(
-        name="desk", type=mujoco.mjtGeom.mjGEOM_BOX, size=half.tolist(),
-        friction=[config.table_friction, 0.005, 0.0001], rgba=[0.55, 0.4, 0.3, 1],
+        name="desk",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=half.tolist(),
+        friction=[config.table_friction, 0.005, 0.0001],
+        rgba=[0.55, 0.4, 0.3, 1],
     )
     world.add_site(name="goal", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.012, 0, 0], rgba=[1, 0, 0, 1])
     camera = world.add_camera(name="overview", pos=list(config.camera_pos))
@@ -95,23 +102,42 @@ def build_spec(config: SceneConfig, *, with_cube: bool) -> mujoco.MjSpec:
     tool.gravcomp = config.gravity_compensation
     tool_half = np.asarray(config.tool_size) / 2
     tool.add_geom(
-        name="tool", type=mujoco.mjtGeom.mjGEOM_BOX, size=tool_half.tolist(), pos=[0, 0, tool_half[2]],
-        mass=0.2, friction=[config.tool_friction, 0.005, 0.0001], priority=1,
-        solref=[config.tool_softness, 1.0], rgba=[0.95, 0.85, 0.2, 1],
+        name="tool",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=tool_half.tolist(),
+        pos=[0, 0, tool_half[2]],
+        mass=0.2,
+        friction=[config.tool_friction, 0.005, 0.0001],
+        priority=1,
+        solref=[config.tool_softness, 1.0],
+        rgba=[0.95, 0.85, 0.2, 1],
     )
     tool.add_site(name="ft_sensor", pos=[0, 0, 0])
     tool.add_site(name="tool_tip", pos=[0, 0, config.tool_size[2]])
-    spec.add_sensor(name="wrist_force", type=mujoco.mjtSensor.mjSENS_FORCE,
-                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname="ft_sensor")
-    spec.add_sensor(name="wrist_torque", type=mujoco.mjtSensor.mjSENS_TORQUE,
-                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname="ft_sensor")
+    spec.add_sensor(
+        name="wrist_force",
+        type=mujoco.mjtSensor.mjSENS_FORCE,
+        objtype=mujoco.mjtObj.mjOBJ_SITE,
+        objname="ft_sensor",
+    )
+    spec.add_sensor(
+        name="wrist_torque",
+        type=mujoco.mjtSensor.mjSENS_TORQUE,
+        objtype=mujoco.mjtObj.mjOBJ_SITE,
+        objname="ft_sensor",
+    )
 
     if with_cube:
         cube = world.add_body(name="cube", pos=[0, 0, 1.0])
         cube.add_freejoint(name="cube_free")
         cube.add_geom(
-            name="cube", type=mujoco.mjtGeom.mjGEOM_BOX, size=(np.asarray(config.cube_size) / 2).tolist(),
-            mass=10.0, friction=[config.cube_friction, 0.005, 0.0001], priority=2, rgba=[0.2, 0.4, 0.9, 1],
+            name="cube",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=(np.asarray(config.cube_size) / 2).tolist(),
+            mass=10.0,
+            friction=[config.cube_friction, 0.005, 0.0001],
+            priority=2,
+            rgba=[0.2, 0.4, 0.9, 1],
         )
     return spec
 
@@ -140,7 +166,9 @@ class Scene:
         self.cube_body = m.body("cube").id if has_cube else -1
         self.cube_qpos = m.jnt_qposadr[m.joint("cube_free").id] if has_cube else -1
         self.cube_dof = m.jnt_dofadr[m.joint("cube_free").id] if has_cube else -1
-        self._cube_unit_inertia = m.body_inertia[self.cube_body] / m.body_mass[self.cube_body] if has_cube else None
+        self._cube_unit_inertia = (
+            m.body_inertia[self.cube_body] / m.body_mass[self.cube_body] if has_cube else None
+        )
 
     @property
     def desk_height(self) -> float:
@@ -153,6 +181,9 @@ class Scene:
     def set_cube_mass(self, mass: float) -> None:
         self.model.body_mass[self.cube_body] = mass
         self.model.body_inertia[self.cube_body] = self._cube_unit_inertia * mass
+        # A free body's diagonal mass (dof_M0) is fixed at compile time; without recomputing the model's
+        # constants the cube would move as if it had its compiled mass while weighing the new one.
+        mujoco.mj_setConst(self.model, self.data)
 
     def wrist_force_world(self, reading: np.ndarray | None = None) -> np.ndarray:
         """The force the environment exerts on the tool, in the world frame, from the wrist F/T sensor.

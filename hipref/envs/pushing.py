@@ -1,0 +1,353 @@
+"""Pushing (paper section 5, Fig. 2b): the UR5e pushes a cube of unknown mass to a goal on the desk.
+
+`PushingTask.push` is the goal-conditioned low-level policy pi^l: a force-controlled push planned with an
+*estimate* m^ of the cube's mass m. Along the push direction the admittance law (Eq. 7 with K_d = 0) is
+driven by the planned force F minus the reaction R measured at the wrist,
+
+    M_d x_d'' = F - R,
+
+and the tool tracks x_d. Over the push, of duration T, the impulse the tool gives the cube is therefore
+F T - M_d x_d'(T); with the tool moving with the cube at the end (x_d' = v), the cube, dragged by
+friction mu m g, leaves the push at
+
+    v = (F - mu m g) T / (M_d + m),
+
+then the pusher brakes away and the cube slides v^2 / (2 mu g) further. `plan` chooses F and T for the
+goal distance from the estimate m^, so the cube stops at the goal only if m^ is close to m: a light
+estimate under-pushes, a heavy one over-pushes: each kg of m^ - m adds (a + mu g) / (M_d + m) to the
+cube's acceleration, about 10 % of the planned a = 2 m/s^2.
+
+The force acts on the cube through real contact: the paddle, tilted so that only its lower edge touches
+the cube low on its face (a cube pushed high tips and rocks), is held by SPD (Eq. 5-6) at the reference
+given by inverse kinematics; the controller knows the robot model and the friction coefficient, never
+the cube's mass."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from hipref.control.admittance import Admittance, AdmittanceGains
+from hipref.control.ik import tool_down_rotation
+from hipref.control.tool import ControllerConfig, ToolController
+from hipref.envs.wiping import START_POSTURE, check_parameter
+from hipref.sim.config import SceneConfig
+from hipref.sim.scene import Scene, make_scene
+from hipref.validation import check_range
+
+FEATURES_PER_PERIOD = 21
+
+
+@dataclass(frozen=True)
+class PushingConfig:
+    """The pushing task: mass range, where cubes and goals lie, and the push plan."""
+
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    """The physical world (Table 1)."""
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    """Gains of SPD (the push direction uses `push_admittance`)."""
+    mass_range: tuple[float, float] = (8.0, 20.0)
+    """Range of the cube mass in kg, the unknown parameter (Table 2)."""
+    desk_height: float = 0.7
+    """Height of the desk in m (known in this task)."""
+    area_x: tuple[float, float] = (-0.3, 0.3)
+    """Extent along the desk in m where cubes start and goals lie."""
+    area_y: tuple[float, float] = (0.0, 0.25)
+    """Extent across the desk in m where cubes start and goals lie: away from the base (at y = -0.42),
+    where the elbow is not folded near its limit, and the cube stays on the desk (its edge at 0.3)."""
+    push_distance: tuple[float, float] = (0.1, 0.2)
+    """Range of the distance in m from the cube's start to its goal: some 3 to 7 goal tolerances, so that
+    a mass error of a few kg moves the cube out of tolerance."""
+    planned_acceleration: float = 2.0
+    """Acceleration in m/s^2 the push plans for the cube. The push force is then m^ (a + mu g) plus
+    M_d a; lower accelerations make the outcome more sensitive to the mass error (the friction term
+    dominates the force) but the push longer."""
+    push_admittance: AdmittanceGains = field(
+        default_factory=lambda: AdmittanceGains(inertia=20.0, stiffness=0.0, damping_ratio=1.0)
+    )
+    """Eq. 7 along the push direction: inertia M_d only (K_d = 0, hence D_d = 0), a force-tracking law.
+    M_d of the order of the cube's mass keeps the loop through the stiff contact slow, so the reaction
+    does not chatter (M_d = 5 kg made the cube bounce on the paddle and rock)."""
+    brake_deceleration: float = 20.0
+    """Deceleration in m/s^2 of the pusher after the push, well above friction's (mu g = 4.9 m/s^2), so
+    the cube leaves the paddle at once and slides free."""
+    contact_height: float = 0.005
+    """Height in m of the paddle's lowest (rear) edge above the desk while pushing: clear of the desk,
+    so the paddle drags nothing but the cube."""
+    tilt: float = 0.1
+    """Pitch in rad of the paddle, lower edge forward: the paddle touches the cube along one edge about
+    a centimetre above the desk, far below the height (about 3.5 cm at the planned forces) above which
+    the push would tip the cube forward."""
+    reach_residual: float = 1e-3
+    """Largest IK position error in m accepted for a layout's tool poses: beyond it the arm cannot place
+    the paddle behind the cube."""
+    settle_time: float = 1.5
+    """Longest time in s the cube is given to come to rest after the push."""
+    rest_speed: float = 1e-3
+    """Speed in m/s below which the cube counts as at rest and the push ends."""
+
+    def __post_init__(self) -> None:
+        check_range("desk_height", self.desk_height, 0.5, 0.9)
+        check_range("planned_acceleration", self.planned_acceleration, 0.1, 10.0)
+        check_range("brake_deceleration", self.brake_deceleration, 1.0, 100.0)
+        check_range("contact_height", self.contact_height, 0.0, self.scene.cube_size[2])
+        check_range("tilt", self.tilt, 0.0, 0.5)
+        check_range("reach_residual", self.reach_residual, 1e-6, 0.05)
+        check_range("settle_time", self.settle_time, 0.1, 10.0)
+        check_range("rest_speed", self.rest_speed, 1e-5, 0.1)
+        if not 0 < self.push_distance[0] <= self.push_distance[1]:
+            raise ValueError(f"push_distance must be (low, high), 0 < low <= high: {self.push_distance!r}")
+        if self.push_admittance.stiffness != 0.0:
+            raise ValueError("push_admittance must have stiffness 0: the push tracks a force, not a position")
+
+
+@dataclass
+class Push:
+    """What one push did."""
+
+    features: np.ndarray
+    """(periods, 21): joint positions (6), joint velocities (6), wrist force (3), joint reference (6)."""
+    cube_xy: np.ndarray
+    """(periods, 2): the cube's position on the desk."""
+    final_error: float
+    """Distance in m from the cube's resting place to its goal."""
+    success: bool
+
+
+def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation matrix by `angle` about the unit vector `axis` (Rodrigues)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+class PushingTask:
+    """The pushing world with its goal-conditioned low-level policy; physics built once per instance."""
+
+    def __init__(self, config: PushingConfig | None = None) -> None:
+        self.config = config or PushingConfig()
+        self.scene: Scene = make_scene(self.config.scene, with_cube=True)
+        self.scene.set_desk_height(self.config.desk_height)
+        # Plain SPD on the IK reference: the push direction's admittance is run by `push` itself.
+        self.controller = ToolController(self.scene, self.config.controller, compliant=False)
+        self._scratch = mujoco.MjData(self.scene.model)
+        self.start = np.zeros(2)
+        self.goal = np.zeros(2)
+        self.direction = np.zeros(2)
+        self.rotation = tool_down_rotation(0.0)
+        m = self.scene.model
+        # Bodies from the shoulder to the tool: what must not touch the desk at a layout's poses.
+        self._arm_bodies = range(m.body("shoulder_link").id, m.body("tool").id + 1)
+        # Bearing from the base of the tool tip at START_POSTURE: the shoulder pan that points the arm at
+        # a target is the target's bearing minus it.
+        self._scratch.qpos[self.scene.arm_qpos] = START_POSTURE
+        mujoco.mj_kinematics(m, self._scratch)
+        tip = self._scratch.site_xpos[self.scene.tool_tip]
+        base = self.config.scene.base_pos
+        self._start_bearing = math.atan2(tip[1] - base[1], tip[0] - base[0])
+        kp = np.asarray(self.config.controller.kp)
+        kd = np.asarray(self.config.controller.kd)
+        self._compliance = 1.0 / kp
+        # SPD's damping acts on the joint velocity itself, so a moving arm trails its reference by kd/kp
+        # times its velocity; every joint has the same ratio (0.1 s), which makes it a Cartesian lead.
+        self._lead = float(np.mean(kd / kp))
+        self._jacp = np.zeros((3, m.nv))
+        self._jacr = np.zeros((3, m.nv))
+        self._jac = np.zeros((6, 6))
+
+    @property
+    def mass(self) -> float:
+        return float(self.scene.model.body_mass[self.scene.cube_body])
+
+    # --- layout ---------------------------------------------------------------------------------------
+
+    def _standoff(self) -> float:
+        """Horizontal distance from the cube's centre to the tool tip with the paddle's edge touching."""
+        cfg = self.config
+        return cfg.scene.cube_size[1] / 2 + cfg.scene.tool_size[1] / 2 * math.cos(cfg.tilt)
+
+    def _tool_height(self) -> float:
+        """Height of the tool tip (the centre of the paddle's lower face) while pushing."""
+        cfg = self.config
+        return cfg.desk_height + cfg.contact_height + cfg.scene.tool_size[1] / 2 * math.sin(cfg.tilt)
+
+    def _arm_pose(self, tool_xy: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Joint positions putting the tool tip at `tool_xy` at pushing height, the paddle's thin side
+        along `direction` and tilted by `tilt`; returns (q, tool rotation, IK position residual in m).
+
+        The paddle is symmetric under a half turn about its axis, so of the two yaws that push along
+        `direction` the one nearer the arm's natural wrist angle is taken; the IK seed turns the shoulder
+        towards the target and the last wrist joint by the yaw, so the damped least-squares iteration
+        stays on START_POSTURE's elbow-up, tool-down branch (a far seed converges to wound-up joints)."""
+        cfg, scene = self.config, self.scene
+        base = cfg.scene.base_pos
+        pan = math.atan2(tool_xy[1] - base[1], tool_xy[0] - base[0]) - self._start_bearing
+        yaw = math.atan2(direction[0], -direction[1])
+        yaw += math.pi * round((pan - yaw) / math.pi)
+        # Tilt about the horizontal axis across the push, so the tool's lower end leads.
+        across = np.array([-direction[1], direction[0], 0.0])
+        rotation = _rotation_about(across, -cfg.tilt) @ tool_down_rotation(yaw)
+        seed = START_POSTURE.copy()
+        seed[0] += pan
+        seed[5] += pan - yaw
+        self._scratch.qpos[scene.arm_qpos] = seed
+        target = np.array([tool_xy[0], tool_xy[1], self._tool_height()])
+        q, residual = self.controller.ik.solve(self._scratch, target, rotation)
+        q = (q + math.pi) % (2 * math.pi) - math.pi
+        return q, rotation, residual
+
+    def _reachable(self, tool_xy: np.ndarray, direction: np.ndarray) -> bool:
+        """Whether the arm reaches the tool pose, on its elbow-up branch inside the joint limits, with no
+        link but the paddle touching anything."""
+        scene = self.scene
+        m, scratch = scene.model, self._scratch
+        q, _, residual = self._arm_pose(tool_xy, direction)
+        low, high = m.jnt_range[scene.arm_qpos].T
+        if residual > self.config.reach_residual or np.any(q < low) or np.any(q > high):
+            return False
+        # Shoulder lifted, elbow bent up: the other branches flip through singularities on the way.
+        if not q[1] < 0.0 < q[2]:
+            return False
+        scratch.qpos[scene.arm_qpos] = q
+        scratch.qpos[scene.cube_qpos : scene.cube_qpos + 3] = [0.0, 0.0, -1.0]  # out of the way
+        mujoco.mj_kinematics(m, scratch)
+        mujoco.mj_collision(m, scratch)
+        for contact in scratch.contact[: scratch.ncon]:
+            bodies = {int(m.geom_bodyid[contact.geom1]), int(m.geom_bodyid[contact.geom2])}
+            if any(b in self._arm_bodies for b in bodies) and not all(b in self._arm_bodies for b in bodies):
+                return False
+        return True
+
+    def sample_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """A random cube start and goal, both inside the area, with the paddle's poses behind the cube at
+        the start and at the goal both reachable."""
+        cfg = self.config
+        low = np.array([cfg.area_x[0], cfg.area_y[0]])
+        high = np.array([cfg.area_x[1], cfg.area_y[1]])
+        while True:
+            start = rng.uniform(low, high)
+            angle = rng.uniform(-np.pi, np.pi)
+            u = np.array([np.cos(angle), np.sin(angle)])
+            goal = start + rng.uniform(*cfg.push_distance) * u
+            if not (np.all(goal >= low) and np.all(goal <= high)):
+                continue
+            behind = u * self._standoff()
+            if self._reachable(start - behind, u) and self._reachable(goal - behind, u):
+                return start, goal
+
+    def reset(self, mass: float, start: np.ndarray, goal: np.ndarray) -> None:
+        """Set the cube mass, put the cube at `start` with a face square to the goal, and the paddle's
+        edge touching the opposite face, at rest."""
+        mass = check_parameter("cube mass", mass, self.config.mass_range)
+        cfg, scene = self.config, self.scene
+        m, d = scene.model, scene.data
+        scene.set_cube_mass(mass)
+        self.start, self.goal = np.asarray(start, float), np.asarray(goal, float)
+        offset = self.goal - self.start
+        if offset.shape != (2,) or not np.all(np.isfinite(offset)) or np.linalg.norm(offset) < 1e-6:
+            raise ValueError(f"start and goal must be two distinct points, got {start!r}, {goal!r}")
+        u = self.direction = offset / np.linalg.norm(offset)
+        q, self.rotation, _ = self._arm_pose(self.start - u * self._standoff(), u)
+        mujoco.mj_resetData(m, d)
+        d.qpos[scene.arm_qpos] = q
+        cube = scene.cube_qpos
+        d.qpos[cube : cube + 3] = [self.start[0], self.start[1], cfg.desk_height + cfg.scene.cube_size[2] / 2]
+        # The cube turned so that the paddle meets a whole face square on, not a corner (which spins it).
+        yaw = math.atan2(u[1], u[0])
+        d.qpos[cube + 3 : cube + 7] = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+        mujoco.mj_forward(m, d)
+        self.controller.reset()
+
+    # --- policy ---------------------------------------------------------------------------------------
+
+    def plan(self, mass_estimate: float) -> tuple[float, float]:
+        """Push force F (N) and duration T (s) that move a cube of the estimated mass to the goal.
+
+        Accelerating at a for T covers a T^2 / 2; sliding from v = a T on friction mu g covers
+        v^2 / (2 mu g). Pushed by F against friction and the admittance's own inertia (module docstring),
+        (M_d + m^) a = F - mu m^ g."""
+        cfg = self.config
+        a = cfg.planned_acceleration
+        mu_g = cfg.scene.cube_friction * abs(cfg.scene.gravity)
+        distance = float(np.linalg.norm(self.goal - self.start))
+        duration = math.sqrt(distance / (a * (0.5 + a / (2 * mu_g))))
+        force = (cfg.push_admittance.inertia + mass_estimate) * a + mass_estimate * mu_g
+        return force, duration
+
+    def _cube_xy(self) -> np.ndarray:
+        return self.scene.data.qpos[self.scene.cube_qpos : self.scene.cube_qpos + 2].copy()
+
+    def _target(self, x_d: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The IK target (position, rotation) that makes SPD carry the tool at x_d with `velocity`.
+
+        In steady state SPD holds kp (q_ref - q) = kd q' - J^T f: the arm trails its reference by kd/kp
+        times its velocity and yields to the contact force f by kp^-1 J^T f. The target leads x_d by the
+        first (a velocity feed-forward) and by the second except along the push: across and above the
+        push the paddle must stay put (yielding, it rose and rode up the cube), while along it that
+        compliance is a series spring that smooths the force loop and leaves the impulse unchanged."""
+        scene, d = self.scene, self.scene.data
+        mujoco.mj_jacSite(scene.model, d, self._jacp, self._jacr, scene.tool_tip)
+        jac = self._jac
+        jac[:3] = self._jacp[:, scene.arm_dof]
+        jac[3:] = self._jacr[:, scene.arm_dof]
+        # The pose change the measured force causes (its moment about the tip is neglected).
+        shift = jac @ (self._compliance * (jac[:3].T @ self.controller.force))
+        u = np.array([*self.direction, 0.0])
+        shift[:3] -= u * (u @ shift[:3])
+        w = -shift[3:]
+        spin = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+        return x_d + self._lead * velocity - shift[:3], (np.eye(3) + spin) @ self.rotation
+
+    def push(self, mass_estimate: float) -> Push:
+        """Push the cube towards the goal with a force planned from `mass_estimate`, then brake and wait
+        for the cube to stop; features are recorded once per control period."""
+        cfg, scene = self.config, self.scene
+        d, controller = scene.data, self.controller
+        mass_estimate = check_parameter("mass estimate", mass_estimate, cfg.mass_range)
+        force, duration = self.plan(mass_estimate)
+        h = cfg.scene.timestep
+        substeps = cfg.scene.control_substeps
+        # The force loop closes through a stiff contact: admittance and IK run at every physics step.
+        admittance = Admittance(cfg.push_admittance, h)
+        u = np.array([*self.direction, 0.0])
+        tool_start = np.array([*(self.start - self.direction * self._standoff()), self._tool_height()])
+        features: list[np.ndarray] = []
+        cube_xy: list[np.ndarray] = []
+        period_force = np.zeros(3)
+        steps = 0
+
+        def step(along: float, speed: float) -> None:
+            nonlocal steps
+            pos, rot = self._target(tool_start + u * along, u * speed)
+            controller.run(pos, rot, substeps=1)
+            period_force[:] += controller.force
+            steps += 1
+            if steps % substeps == 0:
+                # The wrist force averaged over the period, as ToolController reports it.
+                features.append(np.concatenate([d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof],
+                                                period_force / substeps, controller.q_ref]))
+                cube_xy.append(self._cube_xy())
+                period_force[:] = 0.0
+
+        # Push: Eq. 7 with K_d = 0, driven by the planned force minus the cube's reaction at the wrist.
+        along = 0.0
+        for _ in range(max(1, round(duration / h))):
+            along = admittance.update(0.0, force + float(controller.force @ u))
+            step(along, admittance.offset_rate)
+        # Brake: the pusher stops far faster than friction stops the cube, which slides free.
+        speed = admittance.offset_rate
+        while speed > 0.0 or steps % substeps:
+            speed = max(0.0, speed - cfg.brake_deceleration * h)
+            along += speed * h
+            step(along, speed)
+        # Settle: wait for the cube to come to rest.
+        cube_dof = scene.cube_dof
+        for _ in range(round(cfg.settle_time / h)):
+            step(along, 0.0)
+            if steps % substeps == 0 and np.linalg.norm(d.qvel[cube_dof : cube_dof + 6]) < cfg.rest_speed:
+                break
+        final_error = float(np.linalg.norm(self._cube_xy() - self.goal))
+        success = final_error <= cfg.scene.goal_tolerance
+        return Push(np.array(features), np.array(cube_xy), final_error, success)
