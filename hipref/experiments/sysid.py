@@ -1,0 +1,329 @@
+"""The shared engine of every system-identification study: OSI, PESI, PESI-CE and CO-PESI in the real worlds.
+
+One run (`run_si`) follows the paper's protocol for one environment with a fixed, unknown parameter phi:
+
+- Algorithm 4 (A.4): SI is pretrained once per domain on trajectories collected under domain randomisation
+  (`collect_dataset`, `pretrained_model`, both cached). That pretrained model, never updated, is `osi`.
+- Algorithm 2: each learning episode executes the low-level policy pi^l in the world, samples a trajectory
+  slice tau of h control periods, asks the learner which of its candidates is better, gets the scripted
+  teacher's (possibly flipped) preference and tells the learner, which updates SI (Eq. 2, Eq. 3 or the
+  standard cross-entropy of A.8; Algorithm 1 for CO-PESI).
+- Evaluation (section 5, 'Performance metrics'): at episode 0 and every 33 learning episodes the learner is
+  frozen and 10 evaluation episodes are run: SI's absolute error on a fresh slice (`param_error`) and the
+  success of the task executed with SI's estimate (`success_rate`).
+
+Which estimate drives the slices. Every slice SI sees (pretraining, learning, evaluation) comes from a
+probing rollout that pi^l executes with an estimate drawn uniformly from the range, as in the Algorithm 4
+data: the slice distribution then never changes, OSI is evaluated on the inputs it was trained for, and a
+gain of PESI over OSI can only come from the preferences. The scripted teacher judges candidates by their
+distance to the true parameter (section 5, 'Teacher details'), so the clips of pi^l run with each candidate,
+which a human would watch, are not rendered: they would cost two rollouts per episode and change nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import torch
+
+from hipref.learners.coteaching import CoPESIConfig, CoPESILearner
+from hipref.learners.pesi import PESIConfig, PESILearner
+from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT, CandidateSet, PretrainConfig, SIModel, pretrain
+from hipref.sweep import cached_artefact
+from hipref.teachers.preference import ScriptedPreferenceTeacher
+from hipref.validation import check_choice, check_int, check_range
+
+FEATURES_PER_PERIOD = 21
+"""Joint positions (6), joint velocities (6), wrist force (3), joint reference (6) per 10 ms period."""
+
+METHODS: tuple[str, ...] = ("osi", "pesi", "pesi_ce", "co_pesi")
+"""osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy (A.8); co_pesi:
+Algorithm 1 told the true noise level."""
+
+
+@dataclass(frozen=True)
+class DomainSpec:
+    """What a domain contributes to system identification (Table 2)."""
+
+    name: str
+    """'wiping' or 'pushing'."""
+    parameter: str
+    """The unknown parameter phi, for axis labels."""
+    unit: str
+    """Its unit."""
+    candidates: CandidateSet
+    """Phi, the candidate set over the randomisation range."""
+    batch_size: int
+    """Preferences per SI update (Table 2: 16 for height, 32 for mass)."""
+    refresh_frequency: int
+    """f_refresh of the co-teaching classifiers (Table 2: 16 for height, 32 for mass)."""
+
+
+DOMAINS: dict[str, DomainSpec] = {
+    "wiping": DomainSpec("wiping", "desk height", "m", DESK_HEIGHT, batch_size=16, refresh_frequency=16),
+    "pushing": DomainSpec("pushing", "cube mass", "kg", CUBE_MASS, batch_size=32, refresh_frequency=32),
+}
+
+
+def domain_spec(domain: str) -> DomainSpec:
+    """The spec of `domain`; ValueError naming the allowed domains otherwise."""
+    check_choice("domain", domain, tuple(DOMAINS))
+    return DOMAINS[domain]
+
+
+@dataclass(frozen=True)
+class PretrainData:
+    """Algorithm 4's dataset D and the pretraining of SI (A.4, A.7)."""
+
+    n_trajectories: int = 100
+    """Domain-randomised trajectories in D (A.7: 100)."""
+    trajectory_steps: int = 100
+    """Control periods per trajectory (A.7: 100 states and actions)."""
+    history: int = 3
+    """h, control periods per SI input slice (Table 2: 3)."""
+    pretrain_steps: int = 3000
+    """Adam steps of Algorithm 4 (its loop has no stated end)."""
+    learning_rate: float = 1e-3
+    """Adam step size of Algorithm 4 (Table 2: 1e-3)."""
+    seed: int = 0
+    """Seed of the collection and of the pretraining: one pretrained model per domain, shared by all runs."""
+
+    def __post_init__(self) -> None:
+        check_int("n_trajectories", self.n_trajectories, 2)
+        check_int("trajectory_steps", self.trajectory_steps, self.history if self.history >= 1 else 1)
+        check_int("history", self.history, 1)
+        check_int("pretrain_steps", self.pretrain_steps, 0)
+        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
+        check_int("seed", self.seed, 0)
+
+
+class World:
+    """A domain's physical task behind one interface: probe (a rollout with a given estimate) and attempt."""
+
+    def __init__(self, domain: str) -> None:
+        self.spec = domain_spec(domain)
+        if domain == "wiping":
+            from hipref.envs.wiping import WipingTask
+
+            self.task = WipingTask()
+        else:
+            from hipref.envs.pushing import PushingTask
+
+            self.task = PushingTask()
+
+    def rollout(
+        self, true_parameter: float, estimate: float, rng: np.random.Generator
+    ) -> tuple[np.ndarray, bool]:
+        """Execute pi^l once with `estimate` in a world whose parameter is `true_parameter`.
+
+        Returns the per-period features (periods, 21) and whether the task succeeded. The layout (the
+        wiping stroke or the cube's start and goal) is random, drawn from `rng`.
+        """
+        if self.spec.name == "wiping":
+            cfg = self.task.config
+            start, goal = rng.uniform(
+                [cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], size=(2, 2)
+            )
+            self.task.reset(true_parameter, (float(start[0]), float(start[1])))
+            stroke = self.task.stroke(goal, estimate)
+            return stroke.features, bool(stroke.success)
+        start, goal = self.task.sample_layout(rng)
+        self.task.reset(true_parameter, start, goal)
+        push = self.task.push(estimate)
+        return push.features, bool(push.success)
+
+    def random_estimate(self, rng: np.random.Generator) -> float:
+        """A uniformly random estimate: what probing rollouts (and Algorithm 4's data) run with."""
+        return float(rng.uniform(self.spec.candidates.low, self.spec.candidates.high))
+
+    def probe_slice(self, true_parameter: float, history: int, rng: np.random.Generator) -> np.ndarray:
+        """tau: h consecutive periods, at a random place of a probing rollout, flattened (the SI input)."""
+        features, _ = self.rollout(true_parameter, self.random_estimate(rng), rng)
+        start = int(rng.integers(0, len(features) - history + 1))
+        return features[start : start + history].reshape(-1)
+
+
+def collect_dataset(domain: str, data: PretrainData) -> tuple[np.ndarray, np.ndarray]:
+    """Algorithm 4's D: every h-period slice of `n_trajectories` domain-randomised trajectories.
+
+    Each trajectory has its parameter drawn uniformly from the range (A.7) and is made of rollouts of pi^l,
+    each with its own uniformly random estimate, chained until `trajectory_steps` periods are collected:
+    the estimate is what pi^l acts on, so a spread of estimates shows SI how each parameter looks through
+    both good and bad control. Returns (features (n, h * 21), parameters (n,)).
+    """
+    world = World(domain)
+    rng = np.random.default_rng(np.random.SeedSequence([data.seed, 4]))
+    features, parameters = [], []
+    for _ in range(data.n_trajectories):
+        phi = float(rng.uniform(world.spec.candidates.low, world.spec.candidates.high))
+        periods: list[np.ndarray] = []
+        while sum(len(p) for p in periods) < data.trajectory_steps:
+            periods.append(world.rollout(phi, world.random_estimate(rng), rng)[0])
+        trajectory = np.concatenate(periods)[: data.trajectory_steps]
+        windows = np.lib.stride_tricks.sliding_window_view(trajectory, data.history, axis=0)
+        # sliding_window_view puts the window last: (n, 21, h) -> (n, h, 21), flattened in time order.
+        features.append(windows.transpose(0, 2, 1).reshape(len(windows), -1))
+        parameters.append(np.full(len(windows), phi))
+    return np.concatenate(features), np.concatenate(parameters)
+
+
+def pretrained_model(domain: str, data: PretrainData) -> SIModel:
+    """The OSI model: SI pretrained by Algorithm 4 on `collect_dataset`, built once per config (cached)."""
+    spec = domain_spec(domain)
+
+    def build() -> SIModel:
+        features, parameters = cached_artefact(
+            f"si_dataset_{domain}", data, lambda: collect_dataset(domain, data)
+        )
+        with _one_thread():
+            model = SIModel(features.shape[1], spec.candidates, seed=data.seed)
+            pretrain(
+                model,
+                features,
+                parameters,
+                PretrainConfig(data.learning_rate, n_steps=data.pretrain_steps),
+                data.seed,
+            )
+        return model
+
+    return cached_artefact(f"si_osi_{domain}", (domain, dataclasses.asdict(data)), build)
+
+
+class _one_thread:
+    """Torch on one thread inside a run, restored after (a run may execute in the user's kernel)."""
+
+    def __enter__(self) -> None:
+        self.before = torch.get_num_threads()
+        torch.set_num_threads(1)
+
+    def __exit__(self, *exc: object) -> None:
+        torch.set_num_threads(self.before)
+
+
+@dataclass(frozen=True)
+class SIRun:
+    """One run (one sweep cell): a method fine-tuning SI in one environment with a fixed true parameter."""
+
+    domain: str
+    """'wiping' (desk height) or 'pushing' (cube mass)."""
+    method: str
+    """One of METHODS."""
+    noise: float = 0.0
+    """Fraction of flipped preferences, in [0, 1]."""
+    seed: int = 0
+    """Seed of the environment, the teacher and the learner; the same seed gives every method the same
+    environment and the same evaluation episodes."""
+    ground_truth: float | None = None
+    """The environment's true parameter; None draws it uniformly from the range with the seed."""
+    n_candidates: int = 2
+    """N, candidates per query (Eq. 3, A.2); CO-PESI needs 2."""
+    episodes: int = 99
+    """Learning episodes (preferences asked)."""
+    eval_every: int = 33
+    """Learning episodes between evaluations (section 5: 33)."""
+    eval_episodes: int = 10
+    """Evaluation episodes per evaluation (section 5: 10)."""
+    learning_rate: float = 1e-3
+    """Adam step size of SI fine-tuning (Table 2: 1e-3)."""
+    encourage_percentage: float = 0.25
+    """p of Eq. 2 (A.7: 0.25)."""
+    data: PretrainData = PretrainData()
+    """Algorithm 4's data and pretraining, shared by every run with the same value."""
+
+    def __post_init__(self) -> None:
+        spec = domain_spec(self.domain)
+        check_choice("method", self.method, METHODS)
+        check_range("noise", self.noise, 0.0, 1.0)
+        check_int("seed", self.seed, 0)
+        if self.ground_truth is not None:
+            check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
+        check_int("n_candidates", self.n_candidates, 2, spec.candidates.size)
+        if self.method == "co_pesi" and self.n_candidates != 2:
+            raise ValueError(
+                f"n_candidates must be 2 for co_pesi (pair classifiers), got {self.n_candidates}"
+            )
+        check_int("episodes", self.episodes, 0)
+        check_int("eval_every", self.eval_every, 1)
+        check_int("eval_episodes", self.eval_episodes, 1)
+        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
+        check_range("encourage_percentage", self.encourage_percentage, 0.0, 1.0)
+
+
+def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
+    """The learner of `cell.method` on a copy of the pretrained model; None for OSI (no updates)."""
+    spec = domain_spec(cell.domain)
+    common = dict(
+        encourage_percentage=cell.encourage_percentage,
+        learning_rate=cell.learning_rate,
+        batch_size=spec.batch_size,
+        n_candidates=cell.n_candidates,
+    )
+    if cell.method == "osi":
+        return None
+    if cell.method in ("pesi", "pesi_ce"):
+        loss = "soft" if cell.method == "pesi" else "standard"
+        return PESILearner(model, PESIConfig(loss=loss, **common), seed)
+    config = CoPESIConfig(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
+    return CoPESILearner(model, cell.noise, config, seed)
+
+
+def run_si(cell: SIRun) -> pd.DataFrame:
+    """One run of `cell` (a sweep cell function): tidy rows of param_error and success_rate per evaluation."""
+    spec = domain_spec(cell.domain)
+    model = pretrained_model(cell.domain, cell.data)
+    with _one_thread():
+        env_seq, teacher_seq, learner_seq, learn_seq, eval_seq = np.random.SeedSequence(cell.seed).spawn(5)
+        ground_truth = cell.ground_truth
+        if ground_truth is None:
+            ground_truth = float(
+                np.random.default_rng(env_seq).uniform(spec.candidates.low, spec.candidates.high)
+            )
+        world = World(cell.domain)
+        teacher = ScriptedPreferenceTeacher(ground_truth, cell.noise, np.random.default_rng(teacher_seq))
+        learner = make_learner(cell, model, int(learner_seq.generate_state(1)[0]))
+        learn_rng = np.random.default_rng(learn_seq)
+        eval_seqs = eval_seq.spawn(cell.episodes // cell.eval_every + 1)
+        h = cell.data.history
+
+        def estimate(tau: np.ndarray) -> float:
+            return float(model.predict(tau)) if learner is None else learner.estimate(tau)
+
+        def evaluate(index: int) -> tuple[float, float]:
+            # Frozen learner; the evaluation episodes of checkpoint `index` are the same for every method.
+            rng = np.random.default_rng(eval_seqs[index])
+            errors, successes = [], []
+            for _ in range(cell.eval_episodes):
+                phi_hat = estimate(world.probe_slice(ground_truth, h, rng))
+                errors.append(abs(phi_hat - ground_truth))
+                successes.append(world.rollout(ground_truth, phi_hat, rng)[1])
+            return float(np.mean(errors)), float(np.mean(successes))
+
+        rows = []
+        for episode in range(cell.episodes + 1):
+            if episode % cell.eval_every == 0:
+                error, success = evaluate(episode // cell.eval_every)
+                rows += [(episode, "param_error", error), (episode, "success_rate", success)]
+            if episode == cell.episodes or learner is None:
+                continue
+            # Algorithm 2: execute pi^l, sample a slice tau, ask for a preference y, update SI (Eq. 2/3).
+            tau = world.probe_slice(ground_truth, h, learn_rng)
+            query = learner.ask(tau)
+            learner.tell(query, teacher.answer(query))
+    frame = pd.DataFrame(rows, columns=["episode", "metric", "value"])
+    return frame.assign(
+        domain=cell.domain,
+        method=cell.method,
+        noise=cell.noise,
+        seed=cell.seed,
+        ground_truth=round(ground_truth, 6),
+        n_candidates=cell.n_candidates,
+    )[["domain", "method", "noise", "seed", "episode", "metric", "value", "ground_truth", "n_candidates"]]
+
+
+def midpoint_error(domain: str) -> float:
+    """Mean absolute error of always predicting the range's midpoint, for a uniform parameter."""
+    candidates = domain_spec(domain).candidates
+    return (candidates.high - candidates.low) / 4
