@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from hipref.learners.coteaching import CoPESIConfig, CoPESILearner
+from hipref.learners.coteaching import CoPESIConfig, CoPESILearner, EstimatedNoiseCoPESILearner
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT, CandidateSet, PretrainConfig, SIModel, pretrain
 from hipref.sweep import cached_artefact
@@ -39,9 +39,10 @@ from hipref.validation import check_choice, check_int, check_range
 FEATURES_PER_PERIOD = 21
 """Joint positions (6), joint velocities (6), wrist force (3), joint reference (6) per 10 ms period."""
 
-METHODS: tuple[str, ...] = ("osi", "pesi", "pesi_ce", "co_pesi")
+METHODS: tuple[str, ...] = ("osi", "pesi", "pesi_ce", "co_pesi", "co_pesi_estimated")
 """osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy (A.8); co_pesi:
-Algorithm 1 told the true noise level."""
+Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level estimated by
+Algorithm 5 from the preferences so far (A.9)."""
 
 
 @dataclass(frozen=True)
@@ -241,7 +242,7 @@ class SIRun:
         if self.ground_truth is not None:
             check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
         check_int("n_candidates", self.n_candidates, 2, spec.candidates.size)
-        if self.method == "co_pesi" and self.n_candidates != 2:
+        if self.method.startswith("co_pesi") and self.n_candidates != 2:
             raise ValueError(
                 f"n_candidates must be 2 for co_pesi (pair classifiers), got {self.n_candidates}"
             )
@@ -267,6 +268,9 @@ def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
         loss = "soft" if cell.method == "pesi" else "standard"
         return PESILearner(model, PESIConfig(loss=loss, **common), seed)
     config = CoPESIConfig(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
+    if cell.method == "co_pesi_estimated":
+        # A.9: the forget number comes from Algorithm 5 on the preferences so far, not the true noise.
+        return EstimatedNoiseCoPESILearner(model, config, seed)
     return CoPESILearner(model, cell.noise, config, seed)
 
 

@@ -20,6 +20,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hipref.learners.noise_estimation import PreferenceSet, estimate_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
 from hipref.validation import check_int, check_range
@@ -202,3 +203,34 @@ class CoPESILearner(PESILearner):
             self.last_selection = batch[b0]
             self._update_si(batch[b0])
         self.coteaching_steps += 1
+
+
+class EstimatedNoiseCoPESILearner(CoPESILearner):
+    """co_pesi_estimated (A.9, Figs. 8-9): CO-PESI whose noise level comes from Algorithm 5, not the teacher.
+
+    When: immediately before every co-teaching step (Alg. 1 l.6-14, i.e. once the buffer holds more than
+    s = start_size preferences, once per received preference), Algorithm 5 is run on the whole buffer D
+    collected so far and its output becomes `noise_level`, hence the forget rate (1 - remember rate, A.7)
+    and n_forget = round(forget_rate * batch). How: each buffered preference (phi_0, phi_1, y) is one entry
+    of a PreferenceSet; a run has one environment, so all of them describe the same true parameter, as
+    Algorithm 5 assumes. The estimate is taken as written: with no conflicts at all it is 1.0, which
+    CoPESILearner caps at keeping one sample per batch. `noise_history` keeps every estimate.
+    """
+
+    def __init__(self, model: SIModel, config: CoPESIConfig | None = None, seed: int = 0) -> None:
+        # The starting level is never used: the first co-teaching step re-estimates it from D.
+        super().__init__(model, 0.0, config, seed)
+        self.noise_history: list[float] = []
+
+    def buffer_preferences(self) -> PreferenceSet:
+        """D as Algorithm 5's input: the two candidates of each query and its label y (Eq. 2)."""
+        values = self.candidates.values
+        indices = np.stack(self._indices)
+        labels = np.stack(self._labels)[:, 0]
+        return PreferenceSet(first=values[indices[:, 0]], second=values[indices[:, 1]], label=labels)
+
+    def _learn(self) -> None:
+        if len(self) > self.config.start_size:
+            self.noise_level = estimate_noise(self.buffer_preferences())
+            self.noise_history.append(self.noise_level)
+        super()._learn()
