@@ -57,6 +57,8 @@ def main() -> None:
     args = parser.parse_args()
 
     cells = [BusyCell(seed, args.iterations) for seed in range(args.cells)]
+    # Other processes competing for the cores shrink the speed-up; the load average says how much.
+    load_before = os.getloadavg()[0]
     one = time_sweep(cells, 1, args.repeats)
     two = time_sweep(cells, 2, args.repeats)
     report = {
@@ -65,6 +67,7 @@ def main() -> None:
         "iterations": args.iterations,
         "repeats": args.repeats,
         "cpu_count": os.cpu_count(),
+        "loadavg_1min_before": round(load_before, 2),
         "seconds_1_worker": round(one, 3),
         "seconds_2_workers": round(two, 3),
         "speedup": round(one / two, 3),

@@ -56,11 +56,14 @@ _ARTEFACTS: dict[str, Any] = {}
 
 
 class SweepError(RuntimeError):
-    """Some cells failed; the others finished and are cached. `failures` holds (cell, traceback text)."""
+    """Some cells failed; the others ran to the end (and were cached). `failures`: (cell, traceback text)."""
 
     def __init__(self, failures: list[tuple[Any, str]], total: int) -> None:
         self.failures = failures
-        parts = [f"{len(failures)} of {total} cells failed; the other cells finished and are cached."]
+        parts = [
+            f"{len(failures)} of {total} cells failed; the others ran to the end and, unless caching"
+            " is off, were cached: fix the cause and run the sweep again to compute only these."
+        ]
         parts += [f"\n--- {cell!r}\n{tb.rstrip()}" for cell, tb in failures]
         super().__init__("\n".join(parts))
 
@@ -96,6 +99,8 @@ def _resolve_cache_dir(cache_dir: CacheDir) -> Path | None:
 
 def _jsonable(value: Any) -> Any:
     """Turn what json cannot encode into a stable equivalent; refuse anything without one."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return _describe(value)
     if isinstance(value, enum.Enum):
         return value.value
     if isinstance(value, os.PathLike):
@@ -245,6 +250,8 @@ def run_sweep(
     """
     import pandas as pd
 
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
     directory = _resolve_cache_dir(cache_dir)
     keys = [cell_key(fn, cell) for cell in cells]
     done: dict[str, pd.DataFrame] = {}

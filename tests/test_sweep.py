@@ -59,7 +59,10 @@ def dask_address() -> Iterator[str]:
 
 
 @pytest.fixture(autouse=True)
-def _fresh_artefacts() -> Iterator[None]:
+def _isolated(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """No cluster or cache location from the caller's environment, and no artefact memo between tests."""
+    monkeypatch.delenv("HIPREF_DASK_SCHEDULER", raising=False)
+    monkeypatch.delenv("HIPREF_CACHE_DIR", raising=False)
     sweep.forget_artefacts()
     yield
     sweep.forget_artefacts()
@@ -120,6 +123,21 @@ def test_second_run_recomputes_nothing(tmp_path: Path, log_dir: Path, workers: i
     second = run_sweep(toy_cell, cells, cache_dir=tmp_path / "cache", workers=workers)
     assert len(executions(log_dir)) == len(cells), "no cell ran again"
     assert second.to_csv() == first.to_csv()
+
+
+def test_progress_counts_cached_cells_as_done(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cells = grid()
+    run_sweep(toy_cell, cells[:4], cache_dir=tmp_path, workers=1, desc="first")
+    capsys.readouterr()
+    run_sweep(toy_cell, cells, cache_dir=tmp_path, workers=1, desc="second")
+    progress = capsys.readouterr()
+    assert progress.out == ""
+    assert "second" in progress.err and "4/6" in progress.err and "6/6" in progress.err
+
+
+def test_workers_must_be_positive() -> None:
+    with pytest.raises(ValueError, match="workers must be at least 1, got 0"):
+        run_sweep(toy_cell, grid(), cache_dir=False, workers=0)
 
 
 def test_equal_cells_are_computed_once(log_dir: Path) -> None:
