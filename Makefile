@@ -5,7 +5,6 @@ VENV := .venv
 PY := $(VENV)/bin/python
 PROFILE ?= full
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9][0-9]_*.ipynb))
-export MUJOCO_GL ?= egl
 export PYDEVD_DISABLE_FILE_VALIDATION := 1
 
 .PHONY: install reproduce test lab lint bench clean-cache

@@ -4,4 +4,12 @@ Feedback trains a high-level goal selector on a grid over the desk; noisy prefer
 system-identification model whose estimate parameterises the low-level force controller.
 """
 
+import ctypes.util
+import os
+
+# Rendering is headless through EGL unless the user chose a backend. MuJoCo loads the chosen backend's
+# library when it is first imported, so where EGL is missing rendering is disabled instead, and the
+# still frames are skipped with a message rather than the import failing.
+os.environ.setdefault("MUJOCO_GL", "egl" if ctypes.util.find_library("EGL") else "disable")
+
 __version__ = "0.1.0"

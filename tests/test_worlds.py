@@ -132,3 +132,25 @@ def test_the_reset_parameter_is_the_one_simulated() -> None:
     env = gym.make("hipref/DeskWiping-v0").unwrapped
     _, info = env.reset(seed=1, options={"param": 0.62})
     assert info["param"] == 0.62 and env.task.height == pytest.approx(0.62)
+
+
+def test_rendering_without_gl_is_skipped_with_a_message() -> None:
+    import os
+    import subprocess
+
+    script = (
+        "from hipref.envs.wiping import WipingTask\n"
+        "from hipref.sim.render import still_frame\n"
+        "task = WipingTask(); task.reset(0.7)\n"
+        "assert still_frame(task.scene.model, task.scene.data) is None\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", script],
+        env={**os.environ, "MUJOCO_GL": "disable"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "Rendering skipped" in result.stdout
