@@ -23,7 +23,9 @@ which a human would watch, are not rendered: they would cost two rollouts per ep
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -331,3 +333,50 @@ def midpoint_error(domain: str) -> float:
     """Mean absolute error of always predicting the range's midpoint, for a uniform parameter."""
     candidates = domain_spec(domain).candidates
     return (candidates.high - candidates.low) / 4
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """What the SI studies share: repetitions, the paper's evaluation protocol and Algorithm 4's size."""
+
+    seeds: int = 2
+    """Repetitions per setting (Table 2: 15); the true parameter is drawn per seed."""
+    episodes: int = 66
+    """Learning episodes per run."""
+    eval_every: int = 33
+    """Learning episodes between evaluations (section 5: 33)."""
+    eval_episodes: int = 10
+    """Evaluation episodes per evaluation (section 5: 10)."""
+    n_trajectories: int = 100
+    """Algorithm 4 trajectories (A.7: 100)."""
+    pretrain_steps: int = 3000
+    """Adam steps of Algorithm 4."""
+
+    def __post_init__(self) -> None:
+        check_int("seeds", self.seeds, 1)
+        check_int("episodes", self.episodes, 0)
+        check_int("eval_every", self.eval_every, 1)
+        check_int("eval_episodes", self.eval_episodes, 1)
+        self.data  # noqa: B018 - validates n_trajectories and pretrain_steps
+
+    @property
+    def data(self) -> PretrainData:
+        return PretrainData(self.n_trajectories, pretrain_steps=self.pretrain_steps)
+
+    def run_cell(self, domain: str, method: str, seed: int, **setting: Any) -> SIRun:
+        """One run of this protocol; `setting` holds what the study varies (noise, ground truth, N)."""
+        return SIRun(
+            domain,
+            method,
+            seed=seed,
+            episodes=self.episodes,
+            eval_every=self.eval_every,
+            eval_episodes=self.eval_episodes,
+            data=self.data,
+            **setting,
+        )
+
+    def pretrain(self, domains: Iterable[str]) -> None:
+        """Algorithm 4 once, in this process: parallel workers then load the model, not race to build it."""
+        for domain in domains:
+            pretrained_model(domain, self.data)
