@@ -28,7 +28,6 @@ if TYPE_CHECKING:
 
 TIDY_COLUMNS: tuple[str, ...] = ("domain", "method", "noise", "seed", "episode", "metric", "value")
 """Columns every results frame has (more may follow, such as `ground_truth`)."""
-tidy_columns = TIDY_COLUMNS
 
 METRICS: tuple[str, ...] = (
     "param_error",
