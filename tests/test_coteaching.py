@@ -1,6 +1,5 @@
 """CO-PESI (Algorithm 1): small-loss selection, cross-updates, refreshes and the SI update on b_0."""
 
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -12,11 +11,8 @@ from hipref.teachers.preference import ScriptedPreferenceTeacher
 
 
 @pytest.fixture(autouse=True)
-def _single_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+def _single_thread(single_thread: None) -> None:
+    """Every test here runs torch on one thread (tests/conftest.py)."""
 
 
 def _noisy_pairs(n: int, noise: float, seed: int) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:

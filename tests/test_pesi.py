@@ -1,7 +1,6 @@
 """PESI: the soft cross-entropy of Eq. 2 / Eq. 3, the standard-CE ablation, and Algorithm 2 via ask/tell."""
 
 import math
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -14,11 +13,8 @@ from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeache
 
 
 @pytest.fixture(autouse=True)
-def _single_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+def _single_thread(single_thread: None) -> None:
+    """Every test here runs torch on one thread (tests/conftest.py)."""
 
 
 class LogitTable(nn.Module):

@@ -1,6 +1,5 @@
 """The system-identification model: candidate set, normalisation, expected-value estimate, Algorithm 4."""
 
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -19,11 +18,8 @@ from hipref.learners.sysid import (
 
 
 @pytest.fixture(autouse=True)
-def _single_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # as inside a run; avoids thread contention with other work
-    yield
-    torch.set_num_threads(threads)
+def _single_thread(single_thread: None) -> None:
+    """Every test here runs torch on one thread (tests/conftest.py)."""
 
 
 def _synthetic_dataset(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
