@@ -1,6 +1,7 @@
 """The Table 3 study: deterministic, shaped by the results contract, and guarded against bad parameters."""
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -19,6 +20,11 @@ from hipref.experiments.noise_estimation import (
 from hipref.results import TIDY_COLUMNS, check_tidy
 
 SMALL = NoiseEstimationConfig(n_preferences=64, repetitions=5, noise_levels=(0.1, 0.25, 0.4), seed=3)
+
+
+def _shown(features: np.ndarray) -> Callable[[float], np.ndarray]:
+    """An execute(phi) for ask(): every candidate's clip is one period with these features (h = 1)."""
+    return lambda phi: np.reshape(np.asarray(features, dtype=float), (1, -1))
 
 
 def test_table3_is_identical_for_the_same_seed_and_differs_for_another() -> None:
@@ -101,12 +107,12 @@ def test_co_pesi_estimated_sets_its_noise_level_from_algorithm_5_on_its_buffer()
     from hipref.learners.sysid import DESK_HEIGHT, SIModel
     from hipref.teachers.preference import ScriptedPreferenceTeacher
 
-    config = CoPESIConfig(batch_size=8, start_size=8, refresh_frequency=8)
+    config = CoPESIConfig(batch_size=8, start_size=8, refresh_frequency=8, history=1)
     learner = EstimatedNoiseCoPESILearner(SIModel(9, DESK_HEIGHT, hidden_sizes=(8,), seed=0), config, seed=1)
     teacher = ScriptedPreferenceTeacher(0.7, 0.3, np.random.default_rng(0))
     features = np.random.default_rng(2).normal(size=(20, 9))
     for x in features:
-        query = learner.ask(x)
+        query = learner.ask(_shown(x))
         learner.tell(query, teacher.answer(query))
     # One estimate per co-teaching step: every preference after the first start_size.
     assert len(learner.noise_history) == len(features) - config.start_size

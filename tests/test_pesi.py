@@ -1,15 +1,28 @@
 """PESI: the soft cross-entropy of Eq. 2 / Eq. 3, the standard-CE ablation, and Algorithm 2 via ask/tell."""
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
 import torch
 from torch import nn
 
-from hipref.learners.pesi import PESIConfig, PESILearner, pesi_loss, pesi_loss_n, standard_ce_loss
+from hipref.learners.pesi import (
+    PESIConfig,
+    PESILearner,
+    pesi_loss,
+    pesi_loss_n,
+    queried_log_probs,
+    standard_ce_loss,
+)
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
+
+
+def _shown(features: np.ndarray) -> Callable[[float], np.ndarray]:
+    """An execute(phi) for ask(): every candidate's clip is one period with these features (h = 1)."""
+    return lambda phi: np.reshape(np.asarray(features, dtype=float), (1, -1))
 
 
 @pytest.fixture(autouse=True)
@@ -31,7 +44,7 @@ class LogitTable(nn.Module):
 def _sgd_steps(table: LogitTable, pair: list[int], y: float, p: float, steps: int = 1) -> None:
     optimiser = torch.optim.SGD(table.parameters(), lr=0.5)
     for _ in range(steps):
-        loss = pesi_loss(table()[pair].unsqueeze(0), torch.tensor([y]), p)
+        loss = pesi_loss(queried_log_probs(table.logits[None], torch.tensor([pair])), torch.tensor([y]), p)
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
@@ -54,18 +67,15 @@ def test_eq2_step_moves_mass_toward_the_preferred_candidate_and_away_from_the_ot
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_zero_encouragement_ignores_the_label_and_leaves_the_argmax_unchanged(seed: int) -> None:
-    # With p = 0 the targets are the model's own Pr: the label has no effect, and the step only moves mass
-    # from unqueried candidates to the queried ones in proportion to their probability, so the mode stays
-    # the mode whenever it is one of the queried candidates (PESI draws queries from Pr, so it often is).
+def test_zero_encouragement_ignores_the_label_and_leaves_the_distribution_unchanged(seed: int) -> None:
+    # With p = 0 the targets are the model's own Pr over the query: the gradient is zero, whatever the label,
+    # so the argmax (indeed every probability) stays where it was.
     rng = np.random.default_rng(seed)
     logits = torch.as_tensor(rng.normal(size=41), dtype=torch.float32)
     leaf = logits.clone().requires_grad_()
-    grads = []
     for y in (1.0, -1.0):
-        loss = pesi_loss(torch.log_softmax(leaf, dim=-1)[[3, 9]].unsqueeze(0), torch.tensor([y]), 0.0)
-        grads.append(torch.autograd.grad(loss, leaf)[0])
-    torch.testing.assert_close(grads[0], grads[1])
+        loss = pesi_loss(queried_log_probs(leaf[None], torch.tensor([[3, 9]])), torch.tensor([y]), 0.0)
+        torch.testing.assert_close(torch.autograd.grad(loss, leaf)[0], torch.zeros(41))
     table = LogitTable(logits)
     mode = int(table().argmax())
     for _ in range(20):
@@ -73,13 +83,23 @@ def test_zero_encouragement_ignores_the_label_and_leaves_the_argmax_unchanged(se
         pair = [mode, other] if rng.random() < 0.5 else [other, mode]
         _sgd_steps(table, pair, float(rng.choice([-1.0, 1.0])), p=0.0)
         assert int(table().argmax()) == mode
+    torch.testing.assert_close(table.logits.detach(), logits)
+
+
+def test_eq2_gradient_moves_the_pair_logits_by_p_and_leaves_the_others() -> None:
+    leaf = torch.randn(41, requires_grad=True)
+    loss = pesi_loss(queried_log_probs(leaf[None], torch.tensor([[7, 2]])), torch.tensor([1.0]), 0.25)
+    (grad,) = torch.autograd.grad(loss, leaf)
+    expected = torch.zeros(41)
+    expected[7], expected[2] = -0.25, 0.25
+    torch.testing.assert_close(grad, expected)
 
 
 def test_eq3_with_two_candidates_equals_eq2_in_value_and_gradient() -> None:
     logits = torch.randn(8, 41, requires_grad=True)
     pairs = torch.stack([torch.randperm(41)[:2] for _ in range(8)])
     y = torch.tensor([1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, -1.0])
-    log_probs = torch.log_softmax(logits, dim=-1).gather(1, pairs)
+    log_probs = queried_log_probs(logits, pairs)
     eq2 = pesi_loss(log_probs, y, 0.25)
     (grad_eq2,) = torch.autograd.grad(eq2, logits, retain_graph=True)
     eq3 = pesi_loss_n(log_probs, torch.stack([y, -y], dim=1), 0.25)
@@ -89,19 +109,21 @@ def test_eq3_with_two_candidates_equals_eq2_in_value_and_gradient() -> None:
 
 
 def test_eq3_moves_weight_to_the_preferred_candidate_without_changing_the_total() -> None:
-    log_probs = torch.log_softmax(torch.randn(1, 41), dim=-1)[:, :4]
+    log_probs = queried_log_probs(torch.randn(1, 41), torch.tensor([[0, 1, 2, 3]]))
     y_vec = torch.tensor([[-1 / 3, -1 / 3, 1.0, -1 / 3]])
     probs = log_probs.exp()
     weights = probs + 0.25 * y_vec  # the weights of our reading of Eq. 3
-    torch.testing.assert_close(weights.sum(), probs.sum())
+    torch.testing.assert_close(weights.sum(), torch.tensor(1.0))
     torch.testing.assert_close(weights - probs, torch.tensor([[-0.25 / 3, -0.25 / 3, 0.25, -0.25 / 3]]))
     expected = -(log_probs * weights).sum()
     torch.testing.assert_close(pesi_loss_n(log_probs, y_vec, 0.25), expected)
 
 
 def test_standard_ce_is_cross_entropy_among_the_queried_candidates() -> None:
-    log_probs = torch.log(torch.tensor([[0.1, 0.3, 0.05]]))
-    loss = standard_ce_loss(log_probs, torch.tensor([[-0.5, -0.5, 1.0]]))
+    logits = torch.log(torch.tensor([[0.1, 0.3, 0.05, 0.55]]))
+    loss = standard_ce_loss(
+        queried_log_probs(logits, torch.tensor([[0, 1, 2]])), torch.tensor([[-0.5, -0.5, 1.0]])
+    )
     torch.testing.assert_close(loss, -torch.log(torch.tensor(0.05 / 0.45)))
 
 
@@ -112,13 +134,13 @@ def test_eq2_refuses_labels_outside_minus_one_one() -> None:
 
 def _learner(seed: int = 0, **config: object) -> PESILearner:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(32, 16), seed=seed)
-    return PESILearner(model, PESIConfig(**config), seed=seed)
+    return PESILearner(model, PESIConfig(**{"history": 1, **config}), seed=seed)
 
 
 @pytest.mark.parametrize("label", [0, 2, -2, 0.5, math.nan, True, None, "1", [1, 1]])
 def test_tell_refuses_a_label_outside_minus_one_one(label: object) -> None:
     learner = _learner()
-    query = learner.ask(np.ones(4))
+    query = learner.ask(_shown(np.ones(4)))
     with pytest.raises(ValueError, match="preference over 2 candidates"):
         learner.tell(query, label)
     assert len(learner) == 0
@@ -138,7 +160,7 @@ def test_queries_are_distinct_candidates_from_phi_and_reproducible() -> None:
     queries = []
     for _ in range(2):
         learner = _learner(seed=7, n_candidates=3)
-        queries.append([learner.ask(np.full(4, float(i))).candidates for i in range(20)])
+        queries.append([learner.ask(_shown(np.full(4, float(i)))).candidates for i in range(20)])
     assert queries[0] == queries[1]
     for candidates in queries[0]:
         assert len(set(candidates)) == 3
@@ -149,12 +171,12 @@ def test_queries_are_distinct_candidates_from_phi_and_reproducible() -> None:
 @pytest.mark.parametrize(("loss", "n_candidates"), [("soft", 2), ("soft", 3), ("standard", 2)])
 def test_noise_free_preferences_reduce_the_estimate_error(loss: str, n_candidates: int) -> None:
     true_height = 0.843
-    learner = _learner(seed=1, loss=loss, n_candidates=n_candidates)
+    learner = _learner(seed=1, loss=loss, n_candidates=n_candidates, learning_rate=0.1)
     teacher = ScriptedPreferenceTeacher(true_height, 0.0, np.random.default_rng(2))
     features = np.array([0.3, -1.0, 2.0, 0.5])
     initial_error = abs(learner.estimate(features) - true_height)
     for _ in range(200):
-        query = learner.ask(features)
+        query = learner.ask(_shown(features))
         learner.tell(query, teacher.answer(query))
     final_error = abs(learner.estimate(features) - true_height)
     assert len(learner) == 200
@@ -164,12 +186,12 @@ def test_noise_free_preferences_reduce_the_estimate_error(loss: str, n_candidate
 
 def test_the_learner_fine_tunes_a_copy_of_the_model() -> None:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(8,), seed=0)
-    learner = PESILearner(model, PESIConfig(), seed=0)
+    learner = PESILearner(model, PESIConfig(history=1), seed=0)
     features = np.ones(4)
     before = model.predict(features)
     teacher = ScriptedPreferenceTeacher(0.9, 0.0, np.random.default_rng(0))
     for _ in range(5):
-        query = learner.ask(features)
+        query = learner.ask(_shown(features))
         learner.tell(query, teacher.answer(query))
     assert model.predict(features) == before
     assert learner.estimate(features) != float(before)
@@ -188,3 +210,30 @@ def test_the_learner_fine_tunes_a_copy_of_the_model() -> None:
 def test_invalid_config_is_refused(kwargs: dict[str, object], message: str) -> None:
     with pytest.raises(ValueError, match=message):
         PESIConfig(**kwargs)
+
+
+def test_ask_executes_each_candidate_and_slices_tau_from_one_of_their_clips() -> None:
+    # Algorithm 2: pi^l is executed with every candidate; tau is h consecutive periods of one clip.
+    model = SIModel(input_dim=6, candidates=DESK_HEIGHT, hidden_sizes=(8,), seed=0)
+    learner = PESILearner(model, PESIConfig(history=3, n_candidates=3), seed=4)
+    executed: list[float] = []
+
+    def execute(phi: float) -> np.ndarray:
+        executed.append(phi)
+        return phi + np.arange(20.0).reshape(10, 2)  # 10 periods of 2 features, distinct per candidate
+
+    for _ in range(10):
+        executed.clear()
+        query = learner.ask(execute)
+        assert executed == list(query.candidates)
+        assert len(query.clips) == 3
+        slices = [clip[i : i + 3].reshape(-1) for clip in query.clips for i in range(8)]
+        assert any(np.array_equal(query.features, s) for s in slices)
+
+
+def test_ask_refuses_a_clip_that_does_not_fit_the_si_input() -> None:
+    learner = _learner(history=2)  # SI input 4 = h 2 x 2 features
+    with pytest.raises(ValueError, match=r"clip must have shape \(periods >= 2, 2\)"):
+        learner.ask(lambda phi: np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="clip must have shape"):
+        learner.ask(lambda phi: np.zeros((5, 3)))

@@ -4,20 +4,19 @@ One run (`run_si`) follows the paper's protocol for one environment with a fixed
 
 - Algorithm 4 (A.4): SI is pretrained once per domain on trajectories collected under domain randomisation
   (`collect_dataset`, `pretrained_model`, both cached). That pretrained model, never updated, is `osi`.
-- Algorithm 2: each learning episode executes the low-level policy pi^l in the world, samples a trajectory
-  slice tau of h control periods, asks the learner which of its candidates is better, gets the scripted
-  teacher's (possibly flipped) preference and tells the learner, which updates SI (Eq. 2, Eq. 3 or the
-  standard cross-entropy of A.8; Algorithm 1 for CO-PESI).
+- Algorithm 2: each learning episode samples N candidates, executes the low-level policy pi^l with each
+  in the world, samples a trajectory slice tau of h control periods, gets the scripted teacher's
+  (possibly flipped) preference and tells the learner, which updates SI (Eq. 2, Eq. 3 or the standard
+  cross-entropy of A.8; Algorithm 1 for CO-PESI).
 - Evaluation (section 5, 'Performance metrics'): at episode 0 and every 33 learning episodes the learner is
   frozen and 10 evaluation episodes are run: SI's absolute error on a fresh slice (`param_error`) and the
   success of the task executed with SI's estimate (`success_rate`).
 
-Which estimate drives the slices. Every slice SI sees (pretraining, learning, evaluation) comes from a
-probing rollout that pi^l executes with an estimate drawn uniformly from the range, as in the Algorithm 4
-data: the slice distribution then never changes, OSI is evaluated on the inputs it was trained for, and a
-gain of PESI over OSI can only come from the preferences. The scripted teacher judges candidates by their
-distance to the true parameter (section 5, 'Teacher details'), so the clips of pi^l run with each candidate,
-which a human would watch, are not rendered: they would cost two rollouts per episode and change nothing.
+Which estimate drives the slices. In a learning episode pi^l is executed with each queried candidate
+(from one start, so the clips differ only by the candidate) and tau is a slice of one of those clips; the
+candidates are drawn from SI's belief at the previous episode's slice (PESILearner.ask). Every slice SI is
+evaluated on, and every slice of Algorithm 4's data, comes from a probing rollout that pi^l executes with
+an estimate drawn uniformly from the range: OSI is evaluated on the inputs it was trained for.
 """
 
 from __future__ import annotations
@@ -117,23 +116,28 @@ class World:
 
             self.task = PushingTask()
 
-    def rollout(
-        self, true_parameter: float, estimate: float, rng: np.random.Generator
-    ) -> tuple[np.ndarray, bool]:
-        """Execute pi^l once with `estimate` in a world whose parameter is `true_parameter`.
-
-        Returns the per-period features (periods, 21) and whether the task succeeded. The layout (the
-        wiping stroke or the cube's start and goal) is random, drawn from `rng`.
-        """
+    def sample_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """A random episode layout: the stroke's start and goal on the desk, or the cube's start and goal."""
         if self.spec.name == "wiping":
             cfg = self.task.config
             start, goal = rng.uniform(
                 [cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], size=(2, 2)
             )
+            return start, goal
+        return self.task.sample_layout(rng)
+
+    def rollout(
+        self, true_parameter: float, estimate: float, layout: tuple[np.ndarray, np.ndarray]
+    ) -> tuple[np.ndarray, bool]:
+        """Execute pi^l once with `estimate` in a world whose parameter is `true_parameter`.
+
+        Returns the per-period features (periods, 21) and whether the task succeeded.
+        """
+        start, goal = layout
+        if self.spec.name == "wiping":
             self.task.reset(true_parameter, (float(start[0]), float(start[1])))
             stroke = self.task.stroke(goal, estimate)
             return stroke.features, bool(stroke.success)
-        start, goal = self.task.sample_layout(rng)
         self.task.reset(true_parameter, start, goal)
         push = self.task.push(estimate)
         return push.features, bool(push.success)
@@ -144,7 +148,7 @@ class World:
 
     def probe_slice(self, true_parameter: float, history: int, rng: np.random.Generator) -> np.ndarray:
         """tau: h consecutive periods, at a random place of a probing rollout, flattened (the SI input)."""
-        features, _ = self.rollout(true_parameter, self.random_estimate(rng), rng)
+        features, _ = self.rollout(true_parameter, self.random_estimate(rng), self.sample_layout(rng))
         start = int(rng.integers(0, len(features) - history + 1))
         return features[start : start + history].reshape(-1)
 
@@ -164,7 +168,7 @@ def collect_dataset(domain: str, data: PretrainData) -> tuple[np.ndarray, np.nda
         phi = float(rng.uniform(world.spec.candidates.low, world.spec.candidates.high))
         periods: list[np.ndarray] = []
         while sum(len(p) for p in periods) < data.trajectory_steps:
-            periods.append(world.rollout(phi, world.random_estimate(rng), rng)[0])
+            periods.append(world.rollout(phi, world.random_estimate(rng), world.sample_layout(rng))[0])
         trajectory = np.concatenate(periods)[: data.trajectory_steps]
         windows = np.lib.stride_tricks.sliding_window_view(trajectory, data.history, axis=0)
         # sliding_window_view puts the window last: (n, 21, h) -> (n, h, 21), flattened in time order.
@@ -229,8 +233,8 @@ class SIRun:
     """Learning episodes between evaluations (section 5: 33)."""
     eval_episodes: int = 10
     """Evaluation episodes per evaluation (section 5: 10)."""
-    learning_rate: float = 1e-3
-    """Adam step size of SI fine-tuning (Table 2: 1e-3)."""
+    learning_rate: float = 1e-2
+    """Gradient step size of SI fine-tuning (A.7: 0.01)."""
     encourage_percentage: float = 0.25
     """p of Eq. 2 (A.7: 0.25)."""
     data: PretrainData = PretrainData()
@@ -263,6 +267,7 @@ def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
         learning_rate=cell.learning_rate,
         batch_size=spec.batch_size,
         n_candidates=cell.n_candidates,
+        history=cell.data.history,
     )
     if cell.method == "osi":
         return None
@@ -304,7 +309,7 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             for _ in range(cell.eval_episodes):
                 phi_hat = estimate(world.probe_slice(ground_truth, h, rng))
                 errors.append(abs(phi_hat - ground_truth))
-                successes.append(world.rollout(ground_truth, phi_hat, rng)[1])
+                successes.append(world.rollout(ground_truth, phi_hat, world.sample_layout(rng))[1])
             return float(np.mean(errors)), float(np.mean(successes))
 
         rows = []
@@ -314,9 +319,10 @@ def run_si(cell: SIRun) -> pd.DataFrame:
                 rows += [(episode, "param_error", error), (episode, "success_rate", success)]
             if episode == cell.episodes or learner is None:
                 continue
-            # Algorithm 2: execute pi^l, sample a slice tau, ask for a preference y, update SI (Eq. 2/3).
-            tau = world.probe_slice(ground_truth, h, learn_rng)
-            query = learner.ask(tau)
+            # Algorithm 2: execute pi^l with each candidate from one layout, sample a slice tau, ask for a
+            # preference y, update SI (Eq. 2/3).
+            layout = world.sample_layout(learn_rng)
+            query = learner.ask(lambda phi, layout=layout: world.rollout(ground_truth, phi, layout)[0])
             learner.tell(query, teacher.answer(query))
     frame = pd.DataFrame(rows, columns=["episode", "metric", "value"])
     return frame.assign(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import operator
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,21 +23,30 @@ SI_LOSSES: tuple[str, ...] = ("soft", "standard")
 """'soft': Eq. 2 (two candidates) / Eq. 3 (N); 'standard': cross-entropy, the pesi_ce ablation of A.8."""
 
 
+def queried_log_probs(logits: torch.Tensor, indices: torch.Tensor) -> torch.Tensor:
+    """log Pr(phi_i) of the queried candidates, Pr being SI's distribution renormalised over the query.
+
+    logits: (B, |Phi|) SI's logits; indices: (B, N) the queried candidates. Eq. 2 and 3 compare the queried
+    candidates with each other, as the Bradley-Terry preference model of Christiano et al. (2017) that A.8
+    sets them against: Pr(phi_i) is the probability that phi_i is the best of the N shown. Over the query
+    the weights Pr(phi_i) + p y_i then sum to one, and an update only moves mass between the queried
+    candidates, by an amount set by p. (Read over all of Phi instead, the weights sum to less than one and
+    every update also drains the unqueried candidates onto the queried ones whatever the label: in our
+    runs that sharpening alone, at p = 0, doubled SI's error.)
+    """
+    return torch.log_softmax(logits.gather(1, indices), dim=1)
+
+
 def pesi_loss(log_probs_pair: torch.Tensor, y: torch.Tensor, encourage_percentage: float) -> torch.Tensor:
     """Eq. 2: soft cross-entropy over a queried pair, averaged over the batch.
 
     L = -[log Pr(phi_0) (Pr(phi_0) + p y) + log Pr(phi_1) (Pr(phi_1) - p y)]
 
-    log_probs_pair: (B, 2) log Pr of the two queried candidates under SI's distribution over all of Phi
-    (log-probabilities rather than probabilities so a vanishing Pr keeps a usable gradient).
-    y: (B,) in {-1, 1}, 1 meaning phi_0 preferred. The weights Pr + p y are constants (detached): the
-    target is the model's own current belief with p moved from the dispreferred to the preferred candidate,
-    so the preferred is encouraged and the other discouraged, by an amount set by p.
-
-    Pr is SI's distribution over all of Phi, as written, so the two weights sum to Pr(phi_0) + Pr(phi_1) < 1
-    and the loss also pulls mass from unqueried candidates onto the queried pair in proportion to their
-    probabilities. With p = 0 that is all it does: the label is then ignored and the queried pair's order is
-    kept; only p turns the label into a change of ranking.
+    log_probs_pair: (B, 2) from `queried_log_probs` (log-probabilities rather than probabilities so a
+    vanishing Pr keeps a usable gradient). y: (B,) in {-1, 1}, 1 meaning phi_0 preferred. The weights
+    Pr + p y are constants (detached): the target is the model's own current belief with p moved from the
+    dispreferred to the preferred candidate. The gradient on the pair's logits is then exactly -p y and
+    p y, so p sets the update size (section 4), and with p = 0 there is no update at all.
     """
     if not torch.all((y == 1) | (y == -1)):
         raise ValueError(f"y must contain only -1 and 1, got {y.tolist()!r}")
@@ -53,11 +63,11 @@ def pesi_loss_n(log_probs_n: torch.Tensor, y_vec: torch.Tensor, encourage_percen
 
     Our reading of Eq. 3: as printed, the weight is '(sum_{i=1}^{N-1} Pr(phi_i) + p y(phi_i))', an inner sum
     that reuses the outer index. We read the weight as Pr(phi_i) + p y_i, the per-candidate weight of Eq. 2:
-    with N = 2 and y_vec = (y, -y) it is then exactly Eq. 2, and since the y_i sum to zero the total weight
-    sum_i Pr(phi_i) is kept, p being moved from the N - 1 dispreferred candidates to the preferred one, as in
+    with N = 2 and y_vec = (y, -y) it is then exactly Eq. 2, and since the y_i sum to zero the weights
+    still sum to one, p being moved from the N - 1 dispreferred candidates to the preferred one, as in
     Eq. 2. (Summing all N probabilities into every weight would not reduce to Eq. 2.)
 
-    log_probs_n: (B, N) log Pr of the queried candidates; y_vec: (B, N) label vectors.
+    log_probs_n: (B, N) from `queried_log_probs`; y_vec: (B, N) label vectors.
     """
     weights = log_probs_n.detach().exp() + encourage_percentage * y_vec
     return -(log_probs_n * weights).sum(dim=1).mean()
@@ -66,13 +76,12 @@ def pesi_loss_n(log_probs_n: torch.Tensor, y_vec: torch.Tensor, encourage_percen
 def standard_ce_loss(log_probs_n: torch.Tensor, y_vec: torch.Tensor) -> torch.Tensor:
     """The pesi_ce ablation (A.8): cross-entropy with the preferred candidate as the positive class.
 
-    The classes are the queried candidates only (their probabilities renormalised, as in the Bradley-Terry
-    loss of Christiano et al. 2017 that A.8 contrasts with): L = -log Pr(preferred) / sum_queried Pr.
-    Unlike Eq. 2 it pushes toward certainty in the preferred candidate however good the model already is.
+    log_probs_n: (B, N) from `queried_log_probs`, so this is the Bradley-Terry loss of Christiano et al.
+    (2017) that A.8 contrasts with: L = -log Pr(preferred). Unlike Eq. 2 it pushes toward certainty in the
+    preferred candidate however sure the model already is.
     """
-    log_probs_among_queried = log_probs_n - torch.logsumexp(log_probs_n, dim=1, keepdim=True)
     preferred = y_vec.argmax(dim=1, keepdim=True)
-    return -log_probs_among_queried.gather(1, preferred).mean()
+    return -log_probs_n.gather(1, preferred).mean()
 
 
 @dataclass(frozen=True)
@@ -83,12 +92,15 @@ class PESIConfig:
     """'soft' (Eq. 2 / Eq. 3, the method 'pesi') or 'standard' (cross-entropy, the ablation 'pesi_ce')."""
     encourage_percentage: float = 0.25
     """p of Eq. 2, how far one preference moves the target toward the preferred candidate (A.7: 0.25)."""
-    learning_rate: float = 1e-3
-    """Adam step size for SI (Table 2: 1e-3; the text of A.7 also says fine-tuning used 0.01)."""
+    learning_rate: float = 1e-2
+    """Step size of SI fine-tuning (A.7: 'the finetuning process is conducted for learning rate of 0.01';
+    Table 2's 1e-3 is Algorithm 4's pretraining rate)."""
     batch_size: int = 16
     """Preferences per SI update, drawn from the buffer (Table 2: 16 for desk height, 32 for cube mass)."""
     n_candidates: int = 2
     """N, candidates per query: 2 is Eq. 2, more is Eq. 3 (A.2)."""
+    history: int = 3
+    """h, control periods per trajectory slice tau (Algorithm 2's input; Table 2: 3)."""
     query_uniform_mix: float = 0.05
     """Weight of a uniform distribution mixed into Pr(phi) when drawing query candidates, in (0, 1]. It keeps
     every candidate askable and lets N distinct candidates be drawn even from a collapsed distribution."""
@@ -99,6 +111,7 @@ class PESIConfig:
         check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
         check_int("batch_size", self.batch_size, 1)
         check_int("n_candidates", self.n_candidates, 2)
+        check_int("history", self.history, 1)
         check_range("query_uniform_mix", self.query_uniform_mix, 1e-9, 1.0)
 
 
@@ -127,11 +140,15 @@ class PESILearner:
         query_seed, batch_seed, self._torch_seeds = np.random.SeedSequence(seed).spawn(3)
         self._query_rng = np.random.default_rng(query_seed)
         self._batch_rng = np.random.default_rng(batch_seed)
-        self.optimiser = torch.optim.Adam(self.model.parameters(), lr=self.config.learning_rate)
+        # Plain gradient steps: the update is then proportional to p, the encourage percentage 'controlling
+        # the update size' (section 4). Adam would rescale every step to about the learning rate, so that p
+        # hardly mattered and even a zero gradient's rounding noise moved the model.
+        self.optimiser = torch.optim.SGD(self.model.parameters(), lr=self.config.learning_rate)
         # The preference buffer D: one entry per answered query.
         self._features: list[np.ndarray] = []
         self._indices: list[np.ndarray] = []
         self._labels: list[np.ndarray] = []
+        self._last_slice: np.ndarray | None = None
 
     def __len__(self) -> int:
         """|D|, the number of preferences received."""
@@ -153,21 +170,47 @@ class PESILearner:
         """SI's current estimate E_Pr[phi] in parameter units, the value the controller is given."""
         return float(self.model.predict(self._check_features(features)))
 
-    def ask(self, features: np.ndarray) -> PreferenceQuery:
-        """Alg. 2 'phi_0, phi_1 sampled from Phi': draw N distinct candidates for `features` and ask.
+    def ask(self, execute: Callable[[float], np.ndarray]) -> PreferenceQuery:
+        """Algorithm 2, l.2-3: execute pi^l with phi_0 .. phi_{N-1} sampled from Phi, sample a slice tau.
 
-        The candidates are drawn from SI's own Pr(phi | features) (mixed with a little uniform), so queries
-        concentrate where the model is unsure between plausible values, where an answer changes the
-        estimate most, rather than on values it already rules out.
+        `execute(phi)` runs the low-level policy with the candidate value phi in the environment and
+        returns its per-period features, shape (periods >= h, F) with h F = SI's input size; the caller
+        runs every candidate from the same start (the clips a teacher compares). The candidates are
+        distinct, drawn from SI's belief Pr(phi | tau) at the previous query's slice (uniform before the
+        first), mixed with a little uniform; tau is h consecutive periods at a uniformly random place of
+        a uniformly chosen clip.
         """
-        features = self._check_features(features)
-        probs = self.distribution(features)
-        mix = self.config.query_uniform_mix
-        probs = (1.0 - mix) * probs + mix / probs.size
+        n = self.config.n_candidates
         chosen = self._query_rng.choice(
-            probs.size, size=self.config.n_candidates, replace=False, p=probs / probs.sum()
+            self.candidates.size, size=n, replace=False, p=self._query_distribution()
         )
-        return PreferenceQuery(candidates=tuple(self.candidates.values[chosen]), features=features)
+        candidates = tuple(float(c) for c in self.candidates.values[chosen])
+        clips = tuple(self._check_clip(execute(c)) for c in candidates)
+        clip = clips[int(self._query_rng.integers(n))]
+        start = int(self._query_rng.integers(len(clip) - self.config.history + 1))
+        tau = clip[start : start + self.config.history].reshape(-1)
+        self._last_slice = tau
+        return PreferenceQuery(candidates, features=tau, clips=clips)
+
+    def _query_distribution(self) -> np.ndarray:
+        size = self.candidates.size
+        if self._last_slice is not None:
+            probs = self.distribution(self._last_slice)
+        else:
+            probs = np.full(size, 1.0 / size)
+        mix = self.config.query_uniform_mix
+        probs = (1.0 - mix) * probs + mix / size
+        return probs / probs.sum()
+
+    def _check_clip(self, clip: np.ndarray) -> np.ndarray:
+        clip = np.asarray(clip, dtype=np.float64)
+        h = self.config.history
+        if clip.ndim != 2 or clip.shape[0] < h or clip.shape[1] * h != self.model.input_dim:
+            raise ValueError(
+                f"a clip must have shape (periods >= {h}, {self.model.input_dim // h}) for history h = {h} "
+                f"and SI input size {self.model.input_dim}, got {clip.shape}"
+            )
+        return clip
 
     def tell(self, query: PreferenceQuery, label: int | np.ndarray) -> None:
         """Alg. 2 'ask for preference y, update SI': store it in D, learn (refuses a malformed label)."""
@@ -201,7 +244,7 @@ class PESILearner:
     def _update_si(self, batch: np.ndarray) -> float:
         """One Adam step of SI on the buffer entries `batch` with the configured loss; returns the loss."""
         features, indices, labels = self._batch_tensors(batch)
-        log_probs = torch.log_softmax(self.model(features), dim=-1).gather(1, indices)
+        log_probs = queried_log_probs(self.model(features), indices)
         if self.config.loss == "standard":
             loss = standard_ce_loss(log_probs, labels)  # A.8 ablation
         elif self.config.n_candidates == 2:
