@@ -357,9 +357,12 @@ class Protocol:
     """Algorithm 4 trajectories (A.7: 100)."""
     pretrain_steps: int = 3000
     """Adam steps of Algorithm 4."""
+    learning_rate: float = 1e-2
+    """Gradient step size of SI fine-tuning (A.7: 0.01)."""
 
     def __post_init__(self) -> None:
         check_int("seeds", self.seeds, 1)
+        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
         check_int("episodes", self.episodes, 0)
         check_int("eval_every", self.eval_every, 1)
         check_int("eval_episodes", self.eval_episodes, 1)
@@ -378,6 +381,7 @@ class Protocol:
             episodes=self.episodes,
             eval_every=self.eval_every,
             eval_episodes=self.eval_episodes,
+            learning_rate=self.learning_rate,
             data=self.data,
             **setting,
         )
