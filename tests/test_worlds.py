@@ -32,6 +32,20 @@ def test_sponge_resting_on_the_desk_holds_its_force_inside_the_band(wiping: Wipi
     assert low <= min(forces) and max(forces) <= high
 
 
+def test_a_stroke_succeeds_with_the_true_height_and_fails_with_one_5_cm_off(wiping: WipingTask) -> None:
+    cfg = wiping.config
+    rng = np.random.default_rng(0)
+    exact, off = [], []
+    for _ in range(6):
+        height = rng.uniform(0.56, 0.84)  # so that height +- 0.05 m stays in range
+        start, goal = rng.uniform([cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], size=(2, 2))
+        for error in (0.0, -0.05, 0.05):
+            wiping.reset(height, (float(start[0]), float(start[1])))
+            (exact if error == 0.0 else off).append(wiping.stroke(goal, height + error).success)
+    assert np.mean(exact) >= 5 / 6
+    assert np.mean(off) <= 0.25
+
+
 def test_admittance_peak_force_is_below_spd_peak_on_the_same_trajectory() -> None:
     peaks = {}
     for compliant in (True, False):

@@ -3,15 +3,19 @@
 M_d (x_d'' - x_0'') + D_d (x_d' - x_0') + K_d (x_d - x_0) = F_ext
 
 The measured external force moves the compliant reference x_d away from the desired trajectory x_0;
-inverse kinematics turns x_d into the joint reference that SPD tracks (Fig. 6). The law acts along the
-contact normal (world z): in x and y the tool follows x_0, so a goal on the desk is still reached."""
+inverse kinematics turns x_d into the joint reference that SPD tracks (Fig. 6). The tool controller
+applies the law along the contact normal (world z): in x and y the tool follows x_0, so a goal on the desk
+is still reached. The pushing policy applies it along the push direction with K_d = 0 (envs/pushing.py).
+`admittance_step` integrates the law inside the compiled control loop."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
+from hipref.control.compiled import subroutine
 from hipref.validation import check_range
 
 
@@ -36,26 +40,27 @@ class AdmittanceGains:
     def damping(self) -> float:
         return 2.0 * self.damping_ratio * float(np.sqrt(self.stiffness * self.inertia))
 
+    def law(self, dt: float) -> AdmittanceLaw:
+        """Eq. 7 with these gains, integrated at steps of `dt` s."""
+        return AdmittanceLaw(float(self.inertia), float(self.damping), float(self.stiffness), float(dt))
 
-class Admittance:
-    """Eq. 7 along z, integrated with implicit Euler at the control period (stable for any gains)."""
 
-    def __init__(self, gains: AdmittanceGains, dt: float) -> None:
-        self.gains = gains
-        self.dt = dt
-        self.offset = 0.0  # x_d - x_0
-        self.offset_rate = 0.0  # x_d' - x_0'
+class AdmittanceLaw(NamedTuple):
+    """Eq. 7's constants as compiled code takes them, with the step `dt` the law is integrated at."""
 
-    def reset(self) -> None:
-        self.offset = 0.0
-        self.offset_rate = 0.0
+    inertia: float
+    damping: float
+    stiffness: float
+    dt: float
 
-    def update(self, desired_z: float, external_force_z: float) -> float:
-        """Advance Eq. 7 by one control period; returns the compliant reference height x_d."""
-        g, dt = self.gains, self.dt
-        # v' = (F - D v' - K (e + dt v')) / M solved for the new rate v', then e' = e + dt v'.
-        self.offset_rate = (
-            g.inertia * self.offset_rate + dt * (external_force_z - g.stiffness * self.offset)
-        ) / (g.inertia + g.damping * dt + g.stiffness * dt * dt)
-        self.offset += self.offset_rate * dt
-        return desired_z + self.offset
+
+@subroutine
+def admittance_step(law: AdmittanceLaw, offset: float, rate: float, force: float) -> tuple[float, float]:
+    """Advance Eq. 7 by one step of law.dt with implicit Euler (stable for any gains).
+
+    `offset` is x_d - x_0 and `rate` is x_d' - x_0'; `force` is the external force along the law's axis.
+    Returns the new (offset, rate): the compliant reference is x_d = x_0 + offset."""
+    m, d, k, dt = law.inertia, law.damping, law.stiffness, law.dt
+    # v' = (F - D v' - K (e + dt v')) / M solved for the new rate v', then e' = e + dt v'.
+    rate = (m * rate + dt * (force - k * offset)) / (m + d * dt + k * dt * dt)
+    return offset + rate * dt, rate

@@ -2,20 +2,27 @@
 
 `ToolController.run` moves the tool towards a Cartesian target for one control period: the admittance
 law (or, for the ablation, nothing) turns the target into the compliant reference x_d, one IK step turns
-x_d into the joint reference, and SPD computes the joint torques at every physics step of the period."""
+x_d into the joint reference, and SPD computes the joint torques at every physics step of the period.
+`ToolController.track` does the same for a sequence of targets, one period each, and records what the
+system-identification model sees. Both are one compiled call (`track`), MuJoCo's steps included."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
-import mujoco
 import numpy as np
 
-from hipref.control.admittance import Admittance, AdmittanceGains
-from hipref.control.ik import ToolIK
-from hipref.control.spd import SPD
+from hipref.control.admittance import AdmittanceGains, AdmittanceLaw, admittance_step
+from hipref.control.compiled import Physics, kernel, physics_of, subroutine
+from hipref.control.ik import IK, ToolIK, ik_step, tool_jacobian
+from hipref.control.spd import SPD, make_spd, spd_physics_step
 from hipref.sim.scene import Scene
 from hipref.validation import check_vector
+
+FEATURES_PER_PERIOD = 21
+"""What the SI model sees of one control period: joint positions (6), joint velocities (6), wrist force (3)
+and joint reference (6)."""
 
 
 @dataclass(frozen=True)
@@ -34,6 +41,99 @@ class ControllerConfig:
         check_vector("kd", self.kd, 6, positive=True)
 
 
+class WristSensor(NamedTuple):
+    """The wrist force sensor as compiled code reads it (see `Scene.wrist_force_world`)."""
+
+    site: int
+    """The sensor's site, whose frame the reading is expressed in."""
+    adr: int
+    """Address of the force reading in sensordata."""
+    tool_weight: np.ndarray
+    """The tool's weight in the world frame (N), which the sensor is tared by."""
+
+
+def make_wrist_sensor(scene: Scene) -> WristSensor:
+    """The scene's wrist force sensor, tared by the tool's weight as `Scene.wrist_force_world` is."""
+    m = scene.model
+    weight = m.body_mass[m.body("tool").id] * m.opt.gravity
+    return WristSensor(site=int(scene.ft_site), adr=int(scene.force_adr), tool_weight=np.array(weight))
+
+
+@subroutine
+def wrist_force(physics: Physics, sensor: WristSensor, reading: np.ndarray, force: np.ndarray) -> None:
+    """The force the environment exerts on the tool, world frame, from a (possibly averaged) sensor
+    reading: the reading is the tool's force on the flange in the sensor frame, its weight included."""
+    rot = physics.site_xmat[sensor.site]  # row-major 3 x 3
+    for r in range(3):
+        local = rot[3 * r] * reading[0] + rot[3 * r + 1] * reading[1] + rot[3 * r + 2] * reading[2]
+        force[r] = -local - sensor.tool_weight[r]
+
+
+@subroutine
+def write_features(physics: Physics, dof: int, force: np.ndarray, q_ref: np.ndarray, row: np.ndarray) -> None:
+    """One period's features in `row`: the arm's joint positions and velocities (its n joints are dof, ...,
+    dof + n - 1), the wrist force `force` and the joint reference `q_ref` (n + n + 3 + n values)."""
+    n = q_ref.shape[0]
+    for k in range(n):
+        row[k] = physics.qpos[dof + k]
+        row[n + k] = physics.qvel[dof + k]
+        row[2 * n + 3 + k] = q_ref[k]
+    for r in range(3):
+        row[2 * n + r] = force[r]
+
+
+@kernel
+def track(
+    physics: Physics,
+    spd: SPD,
+    ik: IK,
+    sensor: WristSensor,
+    law: AdmittanceLaw,
+    compliant: bool,
+    substeps: int,
+    targets: np.ndarray,
+    target_rot: np.ndarray,
+    admittance: np.ndarray,
+    q_ref: np.ndarray,
+    force: np.ndarray,
+    features: np.ndarray,
+    tool_xy: np.ndarray,
+) -> None:
+    """One control period of Fig. 6 towards each Cartesian target in turn (tool-tip positions, one row per
+    period, all with the tool orientation `target_rot`), each followed by `substeps` physics steps of SPD.
+
+    `admittance` holds Eq. 7's state along z (x_d - x_0, x_d' - x_0'), `q_ref` the joint reference and
+    `force` the wrist force of the last period, all updated. After each period, its features (see
+    `write_features`) go to the row of `features` and the tool tip's position on the desk plane to that
+    of `tool_xy`."""
+    reference, sensed = np.empty(3), np.empty(3)
+    for period in range(targets.shape[0]):
+        for r in range(3):
+            reference[r] = targets[period, r]
+        if compliant:
+            # Eq. 7 along the contact normal, driven by the force measured over the last period.
+            offset, rate = admittance_step(law, admittance[0], admittance[1], force[2])
+            admittance[0] = offset
+            admittance[1] = rate
+            reference[2] += offset
+        # One IK step from the kinematics of the last physics step.
+        tool_jacobian(ik, physics)
+        ik_step(ik, physics, reference, target_rot, q_ref)
+        for r in range(3):
+            sensed[r] = 0.0
+        for _ in range(substeps):
+            spd_physics_step(spd, physics, q_ref)
+            for r in range(3):
+                sensed[r] += physics.sensordata[sensor.adr + r]
+        # The wrist force over the period, averaged as a sensor's anti-aliasing filter does.
+        for r in range(3):
+            sensed[r] /= substeps
+        wrist_force(physics, sensor, sensed, force)
+        write_features(physics, spd.dof, force, q_ref, features[period])
+        tool_xy[period, 0] = physics.site_xpos[ik.site, 0]
+        tool_xy[period, 1] = physics.site_xpos[ik.site, 1]
+
+
 class ToolController:
     """Admittance + IK + SPD around one scene; `compliant=False` gives plain SPD on the same reference."""
 
@@ -42,40 +142,63 @@ class ToolController:
         self.config = config
         self.compliant = compliant
         self.ik = ToolIK(scene)
-        self.spd = SPD(scene, np.asarray(config.kp), np.asarray(config.kd))
-        self.admittance = Admittance(config.admittance, scene.config.control_period)
+        self.spd = make_spd(scene, np.asarray(config.kp), np.asarray(config.kd))
+        self.sensor = make_wrist_sensor(scene)
+        self.physics = physics_of(scene.model, scene.data)
+        self.law = config.admittance.law(scene.config.control_period)
         self.substeps = scene.config.control_substeps
+        self.admittance = np.zeros(2)
+        """Eq. 7's state along z: x_d - x_0 and x_d' - x_0'."""
         self.q_ref = np.zeros(6)
-        self._reference = np.zeros(3)
-        self._sensed = np.zeros(3)
+        """The joint reference SPD tracks, from the last period's IK step."""
         self.force = np.zeros(3)
         """Contact force on the tool in the world frame, averaged over the last control period."""
+        # Buffers of single periods (`run`): arrays of one layout, so the kernel is compiled once.
+        self._target = np.zeros((1, 3))
+        self._rotation = np.zeros((3, 3))
+        self._features = np.zeros((1, FEATURES_PER_PERIOD))
+        self._tool_xy = np.zeros((1, 2))
 
     def reset(self) -> None:
         """Hold the current pose; call after the state was set and mj_forward run."""
-        self.q_ref = self.scene.data.qpos[self.scene.arm_qpos].copy()
-        self.admittance.reset()
+        self.q_ref[:] = self.scene.data.qpos[self.scene.arm_qpos]
+        self.admittance[:] = 0.0
         self.force[:] = self.scene.wrist_force_world()
 
-    def run(self, target_pos: np.ndarray, target_rot: np.ndarray, substeps: int | None = None) -> None:
-        """One control period towards the Cartesian target (tool-tip position, tool orientation).
+    def track(self, targets: np.ndarray, target_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One control period towards each tool-tip position of `targets` (periods, 3) in turn, the tool
+        oriented as `target_rot`. Returns, per period, the features (joint positions (6), joint velocities
+        (6), wrist force (3), joint reference (6)) and the tool tip's position on the desk plane (2)."""
+        targets = np.array(targets, dtype=float, order="C")
+        if targets.ndim != 2 or targets.shape[1] != 3:
+            raise ValueError(f"targets must be (periods, 3), got shape {targets.shape}")
+        features = np.empty((len(targets), FEATURES_PER_PERIOD))
+        tool_xy = np.empty((len(targets), 2))
+        self._track(targets, target_rot, features, tool_xy)
+        return features, tool_xy
 
-        `substeps` overrides the period's physics steps, for a loop that must run faster."""
-        scene = self.scene
-        m, d = scene.model, scene.data
-        reference = self._reference
-        reference[:] = target_pos
-        if self.compliant:
-            reference[2] = self.admittance.update(target_pos[2], self.force[2])
-        self.q_ref = self.ik.step(d, reference, target_rot)
-        substeps = substeps or self.substeps
-        sensed = self._sensed
-        sensed[:] = 0.0
-        reading = d.sensordata[scene.force_adr : scene.force_adr + 3]
-        for _ in range(substeps):
-            mujoco.mj_step1(m, d)
-            d.ctrl[:] = self.spd.torque(self.q_ref)
-            mujoco.mj_step2(m, d)
-            sensed += reading
-        # The wrist force over the period, averaged as a sensor's anti-aliasing filter does.
-        self.force[:] = scene.wrist_force_world(sensed / substeps)
+    def run(self, target_pos: np.ndarray, target_rot: np.ndarray) -> None:
+        """One control period towards the Cartesian target (tool-tip position, tool orientation)."""
+        self._target[0] = target_pos
+        self._track(self._target, target_rot, self._features, self._tool_xy)
+
+    def _track(
+        self, targets: np.ndarray, target_rot: np.ndarray, features: np.ndarray, tool_xy: np.ndarray
+    ) -> None:
+        self._rotation[:] = target_rot
+        track(
+            self.physics,
+            self.spd,
+            self.ik.ik,
+            self.sensor,
+            self.law,
+            self.compliant,
+            int(self.substeps),
+            targets,
+            self._rotation,
+            self.admittance,
+            self.q_ref,
+            self.force,
+            features,
+            tool_xy,
+        )

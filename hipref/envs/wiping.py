@@ -88,7 +88,8 @@ class Stroke:
     success: bool
 
 
-FEATURES_PER_STEP = 21
+FORCE_Z = 14
+"""Column of the features holding the wrist force's normal (z) component."""
 
 
 class WipingTask:
@@ -128,6 +129,7 @@ class WipingTask:
         return float(self.controller.force[2])
 
     def _features(self) -> np.ndarray:
+        """The features of the current state, laid out as each period's in `Stroke.features`."""
         d, scene = self.scene.data, self.scene
         return np.concatenate(
             [d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof], self.controller.force, self.controller.q_ref]
@@ -141,13 +143,17 @@ class WipingTask:
         slow_from = estimate + cfg.approach_clearance
         bottom = estimate - cfg.press_depth
         ref = self.reference
+        heights: list[float] = []
         while ref[2] > bottom + 1e-9:
             speed = cfg.approach_speed if ref[2] > slow_from else scene_cfg.tool_speed
             ref[2] = max(bottom, ref[2] - speed * dt)
-            self.controller.run(ref, self.rotation)
+            heights.append(ref[2])
         # Let the admittance settle on the surface before moving.
-        for _ in range(round(0.2 / dt)):
-            self.controller.run(ref, self.rotation)
+        heights += [ref[2]] * round(0.2 / dt)
+        targets = np.empty((len(heights), 3))
+        targets[:, :2] = ref[:2]
+        targets[:, 2] = heights
+        self.controller.track(targets, self.rotation)
         self.in_contact_phase = True
 
     def stroke(self, goal_xy: np.ndarray, estimate: float) -> Stroke:
@@ -167,16 +173,14 @@ class WipingTask:
         moving = max(1, math.ceil(distance / (scene_cfg.tool_speed * dt)))
         settle = round(0.1 / dt)
         periods = moving + settle
-        features = np.empty((periods, FEATURES_PER_STEP))
-        force = np.empty(periods)
-        tool_xy = np.empty((periods, 2))
-        site = self.scene.tool_tip
-        for k in range(periods):
-            ref[:2] = start + (goal - start) * min(1.0, (k + 1) / moving)
-            self.controller.run(ref, self.rotation)
-            features[k] = self._features()
-            force[k] = self.contact_force()
-            tool_xy[k] = self.scene.data.site_xpos[site][:2]
+        # The reference moves at tool speed to the goal, then stays there while the sponge settles.
+        fraction = np.minimum(1.0, np.arange(1, periods + 1) / moving)
+        targets = np.empty((periods, 3))
+        targets[:, :2] = start + (goal - start) * fraction[:, None]
+        targets[:, 2] = ref[2]
+        features, tool_xy = self.controller.track(targets, self.rotation)
+        ref[:2] = targets[-1, :2]
+        force = features[:, FORCE_Z].copy()
         low, high = cfg.force_band
         in_band = float(np.mean((force >= low) & (force <= high)))
         reached = bool(np.linalg.norm(tool_xy[-1] - goal) <= scene_cfg.reach_tolerance)
