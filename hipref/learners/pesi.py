@@ -1,8 +1,9 @@
 """PESI: fine-tuning the system-identification model with preferences over candidates (Alg. 2, Eq. 2-3).
 
-The learner asks which of N candidates phi_0..phi_{N-1} is better for the current trajectory slice; the
-answer reshapes SI's distribution Pr(phi | tau) by a soft cross-entropy: the preferred candidate's target
-weight is raised by p (the encourage percentage), the others' lowered, from where the model already is.
+The learner draws N candidates phi_0..phi_{N-1}, has the low-level policy executed with each, takes a
+trajectory slice tau of those clips and asks which candidate is best; the answer reshapes SI's distribution
+Pr(phi | tau) over the queried candidates by a soft cross-entropy: the preferred candidate's target weight
+is raised by p (the encourage percentage), the others' lowered, from where the model already is.
 """
 
 from __future__ import annotations
