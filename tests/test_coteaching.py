@@ -1,7 +1,5 @@
 """CO-PESI (Algorithm 1): small-loss selection, cross-updates, refreshes and the SI update on b_0."""
 
-from collections.abc import Callable
-
 import numpy as np
 import pytest
 import torch
@@ -9,11 +7,7 @@ import torch
 from hipref.learners.coteaching import CoPESIConfig, CoPESILearner, CoTeachingPair, coteach_select
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
-
-
-def _shown(features: np.ndarray) -> Callable[[float], np.ndarray]:
-    """An execute(phi) for ask(): every candidate's clip is one period with these features (h = 1)."""
-    return lambda phi: np.reshape(np.asarray(features, dtype=float), (1, -1))
+from tests._clips import shown
 
 
 @pytest.fixture(autouse=True)
@@ -109,11 +103,11 @@ def test_nothing_is_learnt_until_the_buffer_exceeds_the_start_size() -> None:
     features = np.ones(4)
     before = [p.clone() for p in learner.model.parameters()]
     for _ in range(8):
-        query = learner.ask(_shown(features))
+        query = learner.ask(shown(features))
         learner.tell(query, teacher.answer(query))
     assert learner.coteaching_steps == 0
     assert all(torch.equal(a, b) for a, b in zip(before, learner.model.parameters(), strict=True))
-    query = learner.ask(_shown(features))
+    query = learner.ask(shown(features))
     learner.tell(query, teacher.answer(query))
     assert learner.coteaching_steps == 1
     assert not all(torch.equal(a, b) for a, b in zip(before, learner.model.parameters(), strict=True))
@@ -132,7 +126,7 @@ def test_si_is_updated_on_b0_and_classifiers_refresh_on_schedule(monkeypatch: py
     )
     teacher = ScriptedPreferenceTeacher(0.6, 0.25, np.random.default_rng(1))
     for _ in range(14):
-        query = learner.ask(_shown(np.zeros(4)))
+        query = learner.ask(shown(np.zeros(4)))
         learner.tell(query, teacher.answer(query))
         if si_batches:
             np.testing.assert_array_equal(si_batches[-1], learner.last_selection)
@@ -150,7 +144,7 @@ def test_noise_free_preferences_reduce_the_estimate_error_and_runs_are_reproduci
         features = np.array([0.3, -1.0, 2.0, 0.5])
         initial_error = abs(learner.estimate(features) - 0.843)
         for _ in range(200):
-            query = learner.ask(_shown(features))
+            query = learner.ask(shown(features))
             learner.tell(query, teacher.answer(query))
         estimates.append(learner.estimate(features))
     assert estimates[0] == estimates[1]

@@ -1,7 +1,6 @@
 """The Table 3 study: deterministic, shaped by the results contract, and guarded against bad parameters."""
 
 import dataclasses
-from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -18,13 +17,9 @@ from hipref.experiments.noise_estimation import (
     table3,
 )
 from hipref.results import TIDY_COLUMNS, check_tidy
+from tests._clips import shown
 
 SMALL = NoiseEstimationConfig(n_preferences=64, repetitions=5, noise_levels=(0.1, 0.25, 0.4), seed=3)
-
-
-def _shown(features: np.ndarray) -> Callable[[float], np.ndarray]:
-    """An execute(phi) for ask(): every candidate's clip is one period with these features (h = 1)."""
-    return lambda phi: np.reshape(np.asarray(features, dtype=float), (1, -1))
 
 
 def test_table3_is_identical_for_the_same_seed_and_differs_for_another() -> None:
@@ -112,7 +107,7 @@ def test_co_pesi_estimated_sets_its_noise_level_from_algorithm_5_on_its_buffer()
     teacher = ScriptedPreferenceTeacher(0.7, 0.3, np.random.default_rng(0))
     features = np.random.default_rng(2).normal(size=(20, 9))
     for x in features:
-        query = learner.ask(_shown(x))
+        query = learner.ask(shown(x))
         learner.tell(query, teacher.answer(query))
     # One estimate per co-teaching step: every preference after the first start_size.
     assert len(learner.noise_history) == len(features) - config.start_size

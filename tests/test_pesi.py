@@ -1,7 +1,6 @@
 """PESI: the soft cross-entropy of Eq. 2 / Eq. 3, the standard-CE ablation, and Algorithm 2 via ask/tell."""
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -18,11 +17,7 @@ from hipref.learners.pesi import (
 )
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
-
-
-def _shown(features: np.ndarray) -> Callable[[float], np.ndarray]:
-    """An execute(phi) for ask(): every candidate's clip is one period with these features (h = 1)."""
-    return lambda phi: np.reshape(np.asarray(features, dtype=float), (1, -1))
+from tests._clips import shown
 
 
 @pytest.fixture(autouse=True)
@@ -140,7 +135,7 @@ def _learner(seed: int = 0, **config: object) -> PESILearner:
 @pytest.mark.parametrize("label", [0, 2, -2, 0.5, math.nan, True, None, "1", [1, 1]])
 def test_tell_refuses_a_label_outside_minus_one_one(label: object) -> None:
     learner = _learner()
-    query = learner.ask(_shown(np.ones(4)))
+    query = learner.ask(shown(np.ones(4)))
     with pytest.raises(ValueError, match="preference over 2 candidates"):
         learner.tell(query, label)
     assert len(learner) == 0
@@ -160,7 +155,7 @@ def test_queries_are_distinct_candidates_from_phi_and_reproducible() -> None:
     queries = []
     for _ in range(2):
         learner = _learner(seed=7, n_candidates=3)
-        queries.append([learner.ask(_shown(np.full(4, float(i)))).candidates for i in range(20)])
+        queries.append([learner.ask(shown(np.full(4, float(i)))).candidates for i in range(20)])
     assert queries[0] == queries[1]
     for candidates in queries[0]:
         assert len(set(candidates)) == 3
@@ -176,7 +171,7 @@ def test_noise_free_preferences_reduce_the_estimate_error(loss: str, n_candidate
     features = np.array([0.3, -1.0, 2.0, 0.5])
     initial_error = abs(learner.estimate(features) - true_height)
     for _ in range(200):
-        query = learner.ask(_shown(features))
+        query = learner.ask(shown(features))
         learner.tell(query, teacher.answer(query))
     final_error = abs(learner.estimate(features) - true_height)
     assert len(learner) == 200
@@ -191,7 +186,7 @@ def test_the_learner_fine_tunes_a_copy_of_the_model() -> None:
     before = model.predict(features)
     teacher = ScriptedPreferenceTeacher(0.9, 0.0, np.random.default_rng(0))
     for _ in range(5):
-        query = learner.ask(_shown(features))
+        query = learner.ask(shown(features))
         learner.tell(query, teacher.answer(query))
     assert model.predict(features) == before
     assert learner.estimate(features) != float(before)

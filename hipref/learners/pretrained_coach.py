@@ -32,13 +32,11 @@ import torch
 from torch import nn
 
 from hipref.envs.gridworld import WipingGrid
-from hipref.envs.wiping import WipingTask
+from hipref.envs.wiping import FORCE_Z, WipingTask
 from hipref.teachers.feedback import FeedbackQuery, validate_feedback
 from hipref.validation import check_int, check_range
 
-DIRECTIONS: np.ndarray = np.array(
-    [[math.cos(k * math.pi / 4), math.sin(k * math.pi / 4)] for k in range(8)]
-)
+DIRECTIONS: np.ndarray = np.array([[math.cos(k * math.pi / 4), math.sin(k * math.pi / 4)] for k in range(8)])
 """Unit displacement directions on the desk: east (+x), north-east, north (+y), ... counter-clockwise."""
 OBSERVATION_SIZE = 5
 
@@ -115,15 +113,13 @@ def apply_action(
     step = DIRECTIONS[action] * cfg.scene.tool_speed * dt
     low = np.array([grid.area_x[0], grid.area_y[0]])
     high = np.array([grid.area_x[1], grid.area_y[1]])
-    tool_xy = np.empty((chunk_periods, 2))
-    force = np.empty(chunk_periods)
-    site = task.scene.tool_tip
+    targets = np.empty((chunk_periods, 3))
+    targets[:, 2] = ref[2]
     for k in range(chunk_periods):
         ref[:2] = np.clip(ref[:2] + step, low, high)
-        task.controller.run(ref, task.rotation)
-        tool_xy[k] = task.scene.data.site_xpos[site][:2]
-        force[k] = task.contact_force()
-    return tool_xy, force
+        targets[k, :2] = ref[:2]
+    features, tool_xy = task.controller.track(targets, task.rotation)  # the whole chunk in one kernel call
+    return tool_xy, features[:, FORCE_Z].copy()
 
 
 def chunks_per_cell(task: WipingTask, grid: WipingGrid, chunk_periods: int) -> int:
@@ -166,7 +162,10 @@ class FlatPolicy(nn.Module):
     def __init__(self, hidden: int) -> None:
         super().__init__()
         self.net = nn.Sequential(
-            nn.Linear(OBSERVATION_SIZE, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(),
+            nn.Linear(OBSERVATION_SIZE, hidden),
+            nn.Tanh(),
+            nn.Linear(hidden, hidden),
+            nn.Tanh(),
             nn.Linear(hidden, len(DIRECTIONS)),
         )
 
