@@ -5,6 +5,6 @@ from collections.abc import Callable
 import numpy as np
 
 
-def shown(features: np.ndarray) -> Callable[[float], np.ndarray]:
-    """An execute(phi) for ask(): every candidate's clip is one period with these features (h = 1)."""
-    return lambda phi: np.reshape(np.asarray(features, dtype=float), (1, -1))
+def shown(features: np.ndarray) -> Callable[[float, np.random.Generator], np.ndarray]:
+    """An observe(phi, rng) for ask(): every candidate's clip slices to these features."""
+    return lambda phi, rng: np.asarray(features, dtype=float)

@@ -207,28 +207,31 @@ def test_invalid_config_is_refused(kwargs: dict[str, object], message: str) -> N
         PESIConfig(**kwargs)
 
 
-def test_ask_executes_each_candidate_and_slices_tau_from_one_of_their_clips() -> None:
-    # Algorithm 2: pi^l is executed with every candidate; tau is h consecutive periods of one clip.
+def test_ask_slices_tau_from_a_uniformly_chosen_candidates_clip() -> None:
+    # Algorithm 2: tau is a slice of the clip pi^l executes with one of the candidates, chosen uniformly.
     model = SIModel(input_dim=6, candidates=DESK_HEIGHT, hidden_sizes=(8,), seed=0)
     learner = PESILearner(model, PESIConfig(history=3, n_candidates=3), seed=4)
-    executed: list[float] = []
+    observed: list[tuple[float, np.ndarray]] = []
 
-    def execute(phi: float) -> np.ndarray:
-        executed.append(phi)
-        return phi + np.arange(20.0).reshape(10, 2)  # 10 periods of 2 features, distinct per candidate
+    def observe(phi: float, rng: np.random.Generator) -> np.ndarray:
+        first = int(rng.integers(8))
+        tau = (phi + np.arange(20.0).reshape(10, 2))[first : first + 3].reshape(-1)
+        observed.append((phi, tau))
+        return tau
 
-    for _ in range(10):
-        executed.clear()
-        query = learner.ask(execute)
-        assert executed == list(query.candidates)
-        assert len(query.clips) == 3
-        slices = [clip[i : i + 3].reshape(-1) for clip in query.clips for i in range(8)]
-        assert any(np.array_equal(query.features, s) for s in slices)
+    sliced = []
+    for _ in range(300):
+        observed.clear()
+        query = learner.ask(observe)
+        assert len(observed) == 1
+        phi, tau = observed[0]
+        assert np.array_equal(query.features, tau)
+        sliced.append(query.candidates.index(phi))
+    counts = np.bincount(sliced, minlength=3)
+    assert counts.min() > 70, counts  # each of the three places about 100 times
 
 
-def test_ask_refuses_a_clip_that_does_not_fit_the_si_input() -> None:
+def test_ask_refuses_a_slice_that_does_not_fit_the_si_input() -> None:
     learner = _learner(history=2)  # SI input 4 = h 2 x 2 features
-    with pytest.raises(ValueError, match=r"clip must have shape \(periods >= 2, 2\)"):
-        learner.ask(lambda phi: np.zeros((1, 2)))
-    with pytest.raises(ValueError, match="clip must have shape"):
-        learner.ask(lambda phi: np.zeros((5, 3)))
+    with pytest.raises(ValueError, match=r"features must have shape \(4,\)"):
+        learner.ask(lambda phi, rng: np.zeros(6))

@@ -8,7 +8,14 @@ import pytest
 
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.r2_noise import R2Config
-from hipref.experiments.sysid import PretrainData, SIRun, collect_dataset, pretrained_model, run_si
+from hipref.experiments.sysid import (
+    PretrainData,
+    SIRun,
+    World,
+    collect_dataset,
+    pretrained_model,
+    run_si,
+)
 
 TINY = PretrainData(n_trajectories=24, trajectory_steps=40, pretrain_steps=400)
 
@@ -32,6 +39,21 @@ def test_a_run_gives_identical_rows_twice():
     pd.testing.assert_frame_equal(first, second)
     assert set(first.metric) == {"param_error", "success_rate"}
     assert sorted(first.episode.unique()) == [0, 2, 4]
+
+
+@pytest.mark.parametrize(("domain", "truth", "estimate"), [("wiping", 0.62, 0.66), ("pushing", 12.0, 15.0)])
+def test_a_slice_is_cut_from_the_whole_clip_at_a_uniform_place(domain, truth, estimate):
+    # In wiping only the periods up to the slice's end are simulated; they must be the whole clip's.
+    world = World(domain)
+    layout = world.sample_layout(np.random.default_rng(5))
+    clip, _ = world.rollout(truth, estimate, layout)
+    firsts = []
+    for seed in range(40):
+        tau = world.clip_slice(truth, estimate, layout, 3, np.random.default_rng(seed))
+        first = int(np.random.default_rng(seed).integers(0, len(clip) - 2))
+        np.testing.assert_array_equal(tau, clip[first : first + 3].reshape(-1))
+        firsts.append(first)
+    assert max(firsts) > len(clip) / 2  # slices from the clip's second half too
 
 
 @pytest.mark.parametrize(

@@ -88,6 +88,13 @@ class Stroke:
     success: bool
 
 
+def _check_goal(goal_xy: np.ndarray) -> np.ndarray:
+    goal = np.asarray(goal_xy, dtype=float)
+    if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+        raise ValueError(f"goal must be two finite coordinates, got {goal_xy!r}")
+    return goal
+
+
 FORCE_Z = 14
 """Column of the features holding the wrist force's normal (z) component."""
 
@@ -156,26 +163,37 @@ class WipingTask:
         self.controller.track(targets, self.rotation)
         self.in_contact_phase = True
 
-    def stroke(self, goal_xy: np.ndarray, estimate: float) -> Stroke:
-        """Move the sponge on the desk to `goal_xy` at tool speed, pressing at the estimated surface."""
-        cfg, scene_cfg = self.config, self.config.scene
+    def _moving_periods(self, goal: np.ndarray) -> int:
+        """Control periods the reference takes from where it is to `goal` at the tool speed."""
+        scene_cfg = self.config.scene
+        distance = float(np.linalg.norm(goal - self.reference[:2]))
+        return max(1, math.ceil(distance / (scene_cfg.tool_speed * scene_cfg.control_period)))
+
+    def stroke_periods(self, goal_xy: np.ndarray) -> int:
+        """Control periods a stroke from the sponge's place to `goal_xy` lasts, whatever the estimate:
+        moving at the tool speed, then settling for 0.1 s."""
+        return self._moving_periods(_check_goal(goal_xy)) + round(0.1 / self.config.scene.control_period)
+
+    def stroke(self, goal_xy: np.ndarray, estimate: float, *, periods: int | None = None) -> Stroke:
+        """Move the sponge on the desk to `goal_xy` at tool speed, pressing at the estimated surface.
+
+        `periods` executes only the stroke's first `periods` control periods, bit for bit the same as the
+        whole stroke's (what a trajectory slice needs); `reached` and `success` then describe that part."""
+        cfg = self.config
         if not self.in_contact_phase:
             self.approach(estimate)
         estimate = check_parameter("height estimate", estimate, self.config.height_range)
-        goal = np.asarray(goal_xy, dtype=float)
-        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
-            raise ValueError(f"goal must be two finite coordinates, got {goal_xy!r}")
-        dt = scene_cfg.control_period
+        goal = _check_goal(goal_xy)
+        total = self.stroke_periods(goal)
+        if periods is not None and not 1 <= periods <= total:
+            raise ValueError(f"periods must be in [1, {total}] for this stroke, got {periods!r}")
+        moving = self._moving_periods(goal)
         ref = self.reference
         ref[2] = estimate - cfg.press_depth
         start = ref[:2].copy()
-        distance = float(np.linalg.norm(goal - start))
-        moving = max(1, math.ceil(distance / (scene_cfg.tool_speed * dt)))
-        settle = round(0.1 / dt)
-        periods = moving + settle
         # The reference moves at tool speed to the goal, then stays there while the sponge settles.
-        fraction = np.minimum(1.0, np.arange(1, periods + 1) / moving)
-        targets = np.empty((periods, 3))
+        fraction = np.minimum(1.0, np.arange(1, (periods or total) + 1) / moving)
+        targets = np.empty((len(fraction), 3))
         targets[:, :2] = start + (goal - start) * fraction[:, None]
         targets[:, 2] = ref[2]
         features, tool_xy = self.controller.track(targets, self.rotation)
@@ -183,5 +201,5 @@ class WipingTask:
         force = features[:, FORCE_Z].copy()
         low, high = cfg.force_band
         in_band = float(np.mean((force >= low) & (force <= high)))
-        reached = bool(np.linalg.norm(tool_xy[-1] - goal) <= scene_cfg.reach_tolerance)
+        reached = bool(np.linalg.norm(tool_xy[-1] - goal) <= cfg.scene.reach_tolerance)
         return Stroke(features, force, tool_xy, reached, in_band, reached and in_band >= cfg.in_band_fraction)

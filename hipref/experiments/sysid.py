@@ -12,9 +12,9 @@ One run (`run_si`) follows the paper's protocol for one environment with a fixed
   frozen and 10 evaluation episodes are run: SI's absolute error on a fresh slice (`param_error`) and the
   success of the task executed with SI's estimate (`success_rate`).
 
-Which estimate drives the slices. In a learning episode pi^l is executed with each queried candidate
-(from one start, so the clips differ only by the candidate) and tau is a slice of one of those clips; the
-candidates are drawn from SI's belief at the previous episode's slice (PESILearner.ask). Every slice SI is
+Which estimate drives the slices. In a learning episode the candidates are drawn from SI's belief at the
+previous episode's slice and tau is a slice of the clip pi^l executes with one of them, every candidate's
+clip starting from the same layout (PESILearner.ask, World.clip_slice). Every slice SI is
 evaluated on, and every slice of Algorithm 4's data, comes from a probing rollout that pi^l executes with
 an estimate drawn uniformly from the range: OSI is evaluated on the inputs it was trained for.
 """
@@ -146,11 +146,43 @@ class World:
         """A uniformly random estimate: what probing rollouts (and Algorithm 4's data) run with."""
         return float(rng.uniform(self.spec.candidates.low, self.spec.candidates.high))
 
+    def clip_slice(
+        self,
+        true_parameter: float,
+        estimate: float,
+        layout: tuple[np.ndarray, np.ndarray],
+        history: int,
+        rng: np.random.Generator,
+    ) -> np.ndarray:
+        """tau: h consecutive periods at a place drawn uniformly with `rng` of the clip pi^l executes with
+        `estimate` from `layout`, flattened (the SI input).
+
+        Where the layout alone sets the clip's length (wiping: the stroke's distance at the tool speed),
+        only the periods up to tau's end are simulated; physics draws no random numbers, so they are the
+        whole clip's, bit for bit. A push ends when the cube comes to rest, so it is executed whole.
+        """
+        start, goal = layout
+        if self.spec.name == "wiping":
+            self.task.reset(true_parameter, (float(start[0]), float(start[1])))
+            first = _slice_start(self.task.stroke_periods(goal), history, rng)
+            features = self.task.stroke(goal, estimate, periods=first + history).features
+        else:
+            features, _ = self.rollout(true_parameter, estimate, layout)
+            first = _slice_start(len(features), history, rng)
+        return features[first : first + history].reshape(-1)
+
     def probe_slice(self, true_parameter: float, history: int, rng: np.random.Generator) -> np.ndarray:
-        """tau: h consecutive periods, at a random place of a probing rollout, flattened (the SI input)."""
-        features, _ = self.rollout(true_parameter, self.random_estimate(rng), self.sample_layout(rng))
-        start = int(rng.integers(0, len(features) - history + 1))
-        return features[start : start + history].reshape(-1)
+        """tau of a probing rollout: pi^l executed with a uniformly random estimate from a random layout."""
+        return self.clip_slice(
+            true_parameter, self.random_estimate(rng), self.sample_layout(rng), history, rng
+        )
+
+
+def _slice_start(periods: int, history: int, rng: np.random.Generator) -> int:
+    """Where a slice of h periods starts, uniformly over a clip of `periods` periods."""
+    if periods < history:
+        raise ValueError(f"a clip of {periods} periods is shorter than the slice length h = {history}")
+    return int(rng.integers(0, periods - history + 1))
 
 
 def collect_dataset(domain: str, data: PretrainData) -> tuple[np.ndarray, np.ndarray]:
@@ -319,10 +351,12 @@ def run_si(cell: SIRun) -> pd.DataFrame:
                 rows += [(episode, "param_error", error), (episode, "success_rate", success)]
             if episode == cell.episodes or learner is None:
                 continue
-            # Algorithm 2: execute pi^l with each candidate from one layout, sample a slice tau, ask for a
+            # Algorithm 2: execute pi^l with the candidates from one layout, sample a slice tau, ask for a
             # preference y, update SI (Eq. 2/3).
             layout = world.sample_layout(learn_rng)
-            query = learner.ask(lambda phi, layout=layout: world.rollout(ground_truth, phi, layout)[0])
+            query = learner.ask(
+                lambda phi, rng, layout=layout: world.clip_slice(ground_truth, phi, layout, h, rng)
+            )
             learner.tell(query, teacher.answer(query))
     frame = pd.DataFrame(rows, columns=["episode", "metric", "value"])
     return frame.assign(

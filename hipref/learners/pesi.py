@@ -1,7 +1,7 @@
 """PESI: fine-tuning the system-identification model with preferences over candidates (Alg. 2, Eq. 2-3).
 
-The learner draws N candidates phi_0..phi_{N-1}, has the low-level policy executed with each, takes a
-trajectory slice tau of those clips and asks which candidate is best; the answer reshapes SI's distribution
+The learner draws N candidates phi_0..phi_{N-1}, has the low-level policy executed with them, takes a
+trajectory slice tau of one clip and asks which candidate is best; the answer reshapes SI's distribution
 Pr(phi | tau) over the queried candidates by a soft cross-entropy: the preferred candidate's target weight
 is raised by p (the encourage percentage), the others' lowered, from where the model already is.
 """
@@ -171,27 +171,29 @@ class PESILearner:
         """SI's current estimate E_Pr[phi] in parameter units, the value the controller is given."""
         return float(self.model.predict(self._check_features(features)))
 
-    def ask(self, execute: Callable[[float], np.ndarray]) -> PreferenceQuery:
+    def ask(self, observe: Callable[[float, np.random.Generator], np.ndarray]) -> PreferenceQuery:
         """Algorithm 2, l.2-3: execute pi^l with phi_0 .. phi_{N-1} sampled from Phi, sample a slice tau.
 
-        `execute(phi)` runs the low-level policy with the candidate value phi in the environment and
-        returns its per-period features, shape (periods >= h, F) with h F = SI's input size; the caller
-        runs every candidate from the same start (the clips a teacher compares). The candidates are
-        distinct, drawn from SI's belief Pr(phi | tau) at the previous query's slice (uniform before the
-        first), mixed with a little uniform; tau is h consecutive periods at a uniformly random place of
-        a uniformly chosen clip.
+        The candidates are distinct, drawn from SI's belief Pr(phi | tau) at the previous query's slice
+        (uniform before the first), mixed with a little uniform. tau is h consecutive periods at a
+        uniformly random place of a uniformly chosen candidate's clip: `observe(phi, rng)` executes pi^l
+        with phi (every candidate from the same start) and returns that slice, flattened, its place drawn
+        with `rng`.
+
+        Algorithm 2 executes pi^l with every candidate so that a person can compare the clips. The
+        scripted teacher compares the candidate values with the truth and never sees a clip, and pi^l
+        draws no random numbers, so only the clip tau is cut from is executed: the queries, answers and
+        updates are those of executing all N.
         """
         n = self.config.n_candidates
         chosen = self._query_rng.choice(
             self.candidates.size, size=n, replace=False, p=self._query_distribution()
         )
         candidates = tuple(float(c) for c in self.candidates.values[chosen])
-        clips = tuple(self._check_clip(execute(c)) for c in candidates)
-        clip = clips[int(self._query_rng.integers(n))]
-        start = int(self._query_rng.integers(len(clip) - self.config.history + 1))
-        tau = clip[start : start + self.config.history].reshape(-1)
+        sliced = candidates[int(self._query_rng.integers(n))]
+        tau = self._check_features(observe(sliced, self._query_rng))
         self._last_slice = tau
-        return PreferenceQuery(candidates, features=tau, clips=clips)
+        return PreferenceQuery(candidates, features=tau)
 
     def _query_distribution(self) -> np.ndarray:
         size = self.candidates.size
@@ -202,16 +204,6 @@ class PESILearner:
         mix = self.config.query_uniform_mix
         probs = (1.0 - mix) * probs + mix / size
         return probs / probs.sum()
-
-    def _check_clip(self, clip: np.ndarray) -> np.ndarray:
-        clip = np.asarray(clip, dtype=np.float64)
-        h = self.config.history
-        if clip.ndim != 2 or clip.shape[0] < h or clip.shape[1] * h != self.model.input_dim:
-            raise ValueError(
-                f"a clip must have shape (periods >= {h}, {self.model.input_dim // h}) for history h = {h} "
-                f"and SI input size {self.model.input_dim}, got {clip.shape}"
-            )
-        return clip
 
     def tell(self, query: PreferenceQuery, label: int | np.ndarray) -> None:
         """Alg. 2 'ask for preference y, update SI': store it in D, learn (refuses a malformed label)."""
@@ -243,7 +235,7 @@ class PESILearner:
         return features, indices, labels
 
     def _update_si(self, batch: np.ndarray) -> float:
-        """One Adam step of SI on the buffer entries `batch` with the configured loss; returns the loss."""
+        """One gradient step of SI on the buffer entries `batch` with the configured loss; returns it."""
         features, indices, labels = self._batch_tensors(batch)
         log_probs = queried_log_probs(self.model(features), indices)
         if self.config.loss == "standard":

@@ -25,9 +25,6 @@ class PreferenceQuery:
     """The N >= 2 distinct candidate values shown, in parameter units; their order defines the label."""
     features: np.ndarray
     """tau, the (flattened, unnormalised) system-identification input the preference is about; read-only."""
-    clips: tuple[np.ndarray, ...] = ()
-    """What the teacher compares: per candidate, in order, the per-period features of the low-level policy
-    executed with it (Algorithm 2); empty when the candidates are shown without execution."""
 
     def __post_init__(self) -> None:
         candidates = tuple(float(c) for c in self.candidates)
@@ -39,11 +36,6 @@ class PreferenceQuery:
         if not np.all(np.isfinite(features)):
             raise ValueError("features must be finite numbers, got a value that is NaN or infinite")
         features.flags.writeable = False
-        if self.clips and len(self.clips) != len(candidates):
-            raise ValueError(
-                f"clips must hold one clip per candidate, got {len(self.clips)} for {len(candidates)}"
-            )
-        object.__setattr__(self, "clips", tuple(self.clips))
         object.__setattr__(self, "candidates", candidates)
         object.__setattr__(self, "features", features)
 
