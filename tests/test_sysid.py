@@ -1,6 +1,5 @@
 """The system-identification model: candidate set, normalisation, expected-value estimate, Algorithm 4."""
 
-
 import numpy as np
 import pytest
 import torch

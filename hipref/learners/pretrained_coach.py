@@ -110,14 +110,15 @@ def apply_action(
     dt = cfg.scene.control_period
     ref = task.reference
     ref[2] = height - cfg.press_depth
-    step = DIRECTIONS[action] * cfg.scene.tool_speed * dt
-    low = np.array([grid.area_x[0], grid.area_y[0]])
-    high = np.array([grid.area_x[1], grid.area_y[1]])
+    step_x, step_y = DIRECTIONS[action] * cfg.scene.tool_speed * dt
+    x, y = float(ref[0]), float(ref[1])
     targets = np.empty((chunk_periods, 3))
     targets[:, 2] = ref[2]
     for k in range(chunk_periods):
-        ref[:2] = np.clip(ref[:2] + step, low, high)
-        targets[k, :2] = ref[:2]
+        x = min(max(x + step_x, grid.area_x[0]), grid.area_x[1])
+        y = min(max(y + step_y, grid.area_y[0]), grid.area_y[1])
+        targets[k, :2] = x, y
+    ref[:2] = x, y
     features, tool_xy = task.controller.track(targets, task.rotation)  # the whole chunk in one kernel call
     return tool_xy, features[:, FORCE_Z].copy()
 
@@ -198,7 +199,7 @@ class PretrainedCoach:
     def __init__(self, policy: FlatPolicy, config: PretrainedCoachConfig) -> None:
         self.policy = policy
         self.config = config
-        self.optimiser = torch.optim.SGD(policy.parameters(), lr=config.learning_rate)
+        self.parameters = list(policy.parameters())
 
     def probabilities(self, state: np.ndarray) -> np.ndarray:
         with torch.no_grad():
@@ -220,7 +221,6 @@ class PretrainedCoach:
             return
         s = torch.tensor(query.state, dtype=torch.float32)[None]
         log_pi = torch.log_softmax(self.policy(s)[0], 0)[query.action]
-        loss = -f * log_pi  # descending -f log pi ascends f log pi
-        self.optimiser.zero_grad()
-        loss.backward()
-        self.optimiser.step()
+        gradient = torch.autograd.grad(log_pi, self.parameters)
+        with torch.no_grad():
+            torch._foreach_add_(self.parameters, gradient, alpha=self.config.learning_rate * f)
