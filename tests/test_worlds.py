@@ -168,3 +168,21 @@ def test_rendering_without_gl_is_skipped_with_a_message() -> None:
     )
     assert result.returncode == 0, result.stderr
     assert "Rendering skipped" in result.stdout
+
+
+@pytest.mark.parametrize("corner", [(-0.3, -0.1), (0.3, -0.1), (-0.3, 0.2), (0.3, 0.2)])
+def test_the_arm_hovers_on_its_elbow_up_branch_above_every_corner_of_the_area(
+    wiping: WipingTask, corner: tuple[float, float]
+) -> None:
+    # From START_POSTURE itself, inverse kinematics wound the joints up at (0.3, -0.1).
+    wiping.reset(0.7, corner)
+    scene = wiping.scene
+    q = scene.data.qpos[scene.arm_qpos]
+    np.testing.assert_allclose(scene.data.site_xpos[scene.tool_tip][:2], corner, atol=1e-3)
+    assert q[1] < 0.0 < q[2]  # shoulder lifted, elbow bent up
+    assert np.all(np.abs(q) <= np.pi)
+
+
+def test_a_tool_position_out_of_reach_is_refused(wiping: WipingTask) -> None:
+    with pytest.raises(ValueError, match=r"cannot place the tool above \(2.0, 2.0\)"):
+        wiping.reset(0.7, (2.0, 2.0))

@@ -43,7 +43,7 @@ from hipref.control.tool import (
     wrist_force,
     write_features,
 )
-from hipref.envs.wiping import START_POSTURE, check_parameter
+from hipref.envs.wiping import PostureSeed, check_parameter
 from hipref.sim.config import SceneConfig
 from hipref.sim.scene import Scene, make_scene
 from hipref.validation import check_range
@@ -148,13 +148,7 @@ class PushingTask:
         m = self.scene.model
         # Bodies from the shoulder to the tool: what must not touch the desk at a layout's poses.
         self._arm_bodies = range(m.body("shoulder_link").id, m.body("tool").id + 1)
-        # Bearing from the base of the tool tip at START_POSTURE: the shoulder pan that points the arm at
-        # a target is the target's bearing minus it.
-        self._scratch.qpos[self.scene.arm_qpos] = START_POSTURE
-        mujoco.mj_kinematics(m, self._scratch)
-        tip = self._scratch.site_xpos[self.scene.tool_tip]
-        base = self.config.scene.base_pos
-        self._start_bearing = math.atan2(tip[1] - base[1], tip[0] - base[0])
+        self._seed = PostureSeed(self.scene)
         kp = np.asarray(self.config.controller.kp)
         kd = np.asarray(self.config.controller.kd)
         self._compliance = 1.0 / kp
@@ -187,17 +181,12 @@ class PushingTask:
         towards the target and the last wrist joint by the yaw, so the damped least-squares iteration
         stays on START_POSTURE's elbow-up, tool-down branch (a far seed converges to wound-up joints)."""
         cfg, scene = self.config, self.scene
-        base = cfg.scene.base_pos
-        pan = math.atan2(tool_xy[1] - base[1], tool_xy[0] - base[0]) - self._start_bearing
         yaw = math.atan2(direction[0], -direction[1])
-        yaw += math.pi * round((pan - yaw) / math.pi)
+        yaw += math.pi * round((self._seed.pan(tool_xy) - yaw) / math.pi)
         # Tilt about the horizontal axis across the push, so the tool's lower end leads.
         across = np.array([-direction[1], direction[0], 0.0])
         rotation = _rotation_about(across, -cfg.tilt) @ tool_down_rotation(yaw)
-        seed = START_POSTURE.copy()
-        seed[0] += pan
-        seed[5] += pan - yaw
-        self._scratch.qpos[scene.arm_qpos] = seed
+        self._scratch.qpos[scene.arm_qpos] = self._seed.seed(tool_xy, yaw)
         target = np.array([tool_xy[0], tool_xy[1], self._tool_height()])
         q, residual = self.controller.ik.solve(self._scratch, target, rotation)
         q = (q + math.pi) % (2 * math.pi) - math.pi

@@ -23,6 +23,54 @@ START_POSTURE = np.array([0.0, -1.3, 1.8, -2.07, -1.57, 0.0])
 """Joint seed for inverse kinematics at reset: elbow up, tool down, facing the desk."""
 
 
+class PostureSeed:
+    """Inverse-kinematics seeds on START_POSTURE's branch for a tool pose above any point of the desk.
+
+    The shoulder is turned towards the target and the last wrist joint back by the same angle plus the
+    tool's yaw, so the damped least-squares iteration starts close to the elbow-up, tool-down solution: from
+    START_POSTURE itself it converged, at the desk corner next to the base, onto wound-up joints far outside
+    their limits."""
+
+    def __init__(self, scene: Scene) -> None:
+        scratch = mujoco.MjData(scene.model)
+        scratch.qpos[scene.arm_qpos] = START_POSTURE
+        mujoco.mj_kinematics(scene.model, scratch)
+        tip = scratch.site_xpos[scene.tool_tip]
+        self.base = np.asarray(scene.config.base_pos[:2], dtype=float)
+        self.start_bearing = math.atan2(tip[1] - self.base[1], tip[0] - self.base[0])
+        """Bearing from the base of the tool tip at START_POSTURE."""
+
+    def pan(self, tool_xy: np.ndarray) -> float:
+        """The shoulder turn in rad that points the arm at `tool_xy`."""
+        return math.atan2(tool_xy[1] - self.base[1], tool_xy[0] - self.base[0]) - self.start_bearing
+
+    def seed(self, tool_xy: np.ndarray, yaw: float = 0.0) -> np.ndarray:
+        """The seed for a tool tip at `tool_xy` turned by `yaw` about the vertical."""
+        pan = self.pan(tool_xy)
+        seed = START_POSTURE.copy()
+        seed[0] += pan
+        seed[5] += pan - yaw
+        return seed
+
+
+def check_reached(scene: Scene, q: np.ndarray, residual: float, tolerance: float, where: str) -> np.ndarray:
+    """`q` (joint positions from inverse kinematics) wrapped to [-pi, pi), refused with a ValueError naming
+    `where` if the tool missed its target by more than `tolerance` m or a joint is outside its range."""
+    q = (q + math.pi) % (2 * math.pi) - math.pi
+    low, high = scene.model.jnt_range[scene.arm_qpos].T
+    if residual > tolerance or np.any(q < low) or np.any(q > high):
+        raise ValueError(
+            f"the arm cannot place the tool {where}: inverse kinematics ends {residual:.4f} m off "
+            f"(tolerance {tolerance} m) at joints {np.round(q, 3).tolist()} (ranges {low.round(2).tolist()} "
+            f"to {high.round(2).tolist()})"
+        )
+    return q
+
+
+REACH_RESIDUAL = 1e-3
+"""Largest inverse-kinematics position error in m accepted when the arm is placed for an episode."""
+
+
 def check_parameter(name: str, value: float, bounds: tuple[float, float]) -> float:
     """The unknown parameter (or an estimate of it) must be finite and inside its range."""
     check_range(name, value, bounds[0], bounds[1])
@@ -108,6 +156,7 @@ class WipingTask:
         self.controller = ToolController(self.scene, self.config.controller, compliant=compliant)
         self.rotation = tool_down_rotation(0.0)
         self._scratch = mujoco.MjData(self.scene.model)
+        self._seed = PostureSeed(self.scene)
         self.reference = np.zeros(3)
         self.in_contact_phase = False
 
@@ -122,8 +171,9 @@ class WipingTask:
         m, d = scene.model, scene.data
         scene.set_desk_height(height)
         target = np.array([tool_xy[0], tool_xy[1], self.config.hover_height])
-        self._scratch.qpos[scene.arm_qpos] = START_POSTURE
-        q, _ = self.controller.ik.solve(self._scratch, target, self.rotation)
+        self._scratch.qpos[scene.arm_qpos] = self._seed.seed(target[:2])
+        q, residual = self.controller.ik.solve(self._scratch, target, self.rotation)
+        q = check_reached(scene, q, residual, REACH_RESIDUAL, f"above {tuple(tool_xy)}")
         mujoco.mj_resetData(m, d)
         d.qpos[scene.arm_qpos] = q
         mujoco.mj_forward(m, d)
