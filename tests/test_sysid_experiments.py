@@ -41,6 +41,16 @@ def test_a_run_gives_identical_rows_twice():
     assert sorted(first.episode.unique()) == [0, 2, 4]
 
 
+def test_every_method_meets_the_same_evaluation_episodes():
+    # Before any preference the methods share SI's pretrained model: equal episodes, equal first rows.
+    first = [
+        run_si(SIRun("pushing", method, seed=2, episodes=2, eval_every=2, eval_episodes=3, data=TINY))
+        for method in ("osi", "pesi", "pesi_ce")
+    ]
+    at_start = [frame[frame.episode == 0].value.tolist() for frame in first]
+    assert at_start[0] == at_start[1] == at_start[2]
+
+
 @pytest.mark.parametrize(("domain", "truth", "estimate"), [("wiping", 0.62, 0.66), ("pushing", 12.0, 15.0)])
 def test_a_slice_is_cut_from_the_whole_clip_at_a_uniform_place(domain, truth, estimate):
     # In wiping only the periods up to the slice's end are simulated; they must be the whole clip's.

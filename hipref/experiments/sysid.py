@@ -313,12 +313,50 @@ def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
     return CoPESILearner(model, cell.noise, config, seed)
 
 
+@dataclass(frozen=True)
+class EvaluationSpec:
+    """What a run's evaluation episodes depend on: not the method, the noise level or N."""
+
+    domain: str
+    ground_truth: float
+    seed: int
+    """The run's seed; its fifth SeedSequence child seeds the evaluations."""
+    checkpoints: int
+    eval_episodes: int
+    history: int
+
+
+Episode = tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]
+"""An evaluation episode: the slice SI estimates from, and the layout the task is then attempted in."""
+
+
+def evaluation_episodes(world: World, spec: EvaluationSpec) -> list[list[Episode]]:
+    """Per checkpoint, its evaluation episodes: a probing slice and an attempt layout each, drawn from the
+    checkpoint's own seed. Every method, noise level and N of one environment meets the same episodes,
+    so they are built once (cached) and the methods' runs differ only in what SI makes of them."""
+
+    def build() -> list[list[Episode]]:
+        eval_seq = np.random.SeedSequence(spec.seed).spawn(5)[4]
+        checkpoints = []
+        for seq in eval_seq.spawn(spec.checkpoints):
+            rng = np.random.default_rng(seq)
+            episodes = []
+            for _ in range(spec.eval_episodes):
+                tau = world.probe_slice(spec.ground_truth, spec.history, rng)
+                episodes.append((tau, world.sample_layout(rng)))
+            checkpoints.append(episodes)
+        return checkpoints
+
+    return cached_artefact(f"si_evaluation_{spec.domain}", spec, build)
+
+
 def run_si(cell: SIRun) -> pd.DataFrame:
     """One run of `cell` (a sweep cell function): tidy rows of param_error and success_rate per evaluation."""
     spec = domain_spec(cell.domain)
     model = pretrained_model(cell.domain, cell.data)
     with _one_thread():
-        env_seq, teacher_seq, learner_seq, learn_seq, eval_seq = np.random.SeedSequence(cell.seed).spawn(5)
+        # The fifth child seeds the evaluations (evaluation_episodes).
+        env_seq, teacher_seq, learner_seq, learn_seq, _ = np.random.SeedSequence(cell.seed).spawn(5)
         ground_truth = cell.ground_truth
         if ground_truth is None:
             ground_truth = float(
@@ -328,20 +366,23 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         teacher = ScriptedPreferenceTeacher(ground_truth, cell.noise, np.random.default_rng(teacher_seq))
         learner = make_learner(cell, model, int(learner_seq.generate_state(1)[0]))
         learn_rng = np.random.default_rng(learn_seq)
-        eval_seqs = eval_seq.spawn(cell.episodes // cell.eval_every + 1)
         h = cell.data.history
+        n_checkpoints = cell.episodes // cell.eval_every + 1
+        checkpoints = evaluation_episodes(
+            world, EvaluationSpec(cell.domain, ground_truth, cell.seed, n_checkpoints, cell.eval_episodes, h)
+        )
 
         def estimate(tau: np.ndarray) -> float:
             return float(model.predict(tau)) if learner is None else learner.estimate(tau)
 
         def evaluate(index: int) -> tuple[float, float]:
-            # Frozen learner; the evaluation episodes of checkpoint `index` are the same for every method.
-            rng = np.random.default_rng(eval_seqs[index])
+            # The learner frozen: SI estimates from each episode's probing slice, the task is attempted with
+            # the estimate.
             errors, successes = [], []
-            for _ in range(cell.eval_episodes):
-                phi_hat = estimate(world.probe_slice(ground_truth, h, rng))
+            for tau, layout in checkpoints[index]:
+                phi_hat = estimate(tau)
                 errors.append(abs(phi_hat - ground_truth))
-                successes.append(world.rollout(ground_truth, phi_hat, world.sample_layout(rng))[1])
+                successes.append(world.rollout(ground_truth, phi_hat, layout)[1])
             return float(np.mean(errors)), float(np.mean(successes))
 
         rows = []
