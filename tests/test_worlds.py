@@ -186,3 +186,11 @@ def test_the_arm_hovers_on_its_elbow_up_branch_above_every_corner_of_the_area(
 def test_a_tool_position_out_of_reach_is_refused(wiping: WipingTask) -> None:
     with pytest.raises(ValueError, match=r"cannot place the tool above \(2.0, 2.0\)"):
         wiping.reset(0.7, (2.0, 2.0))
+
+
+def test_an_unstable_simulation_voids_the_episode(wiping: WipingTask) -> None:
+    # MuJoCo resets an unstable simulation and carries on; the episode must not.
+    wiping.reset(0.7)
+    wiping.scene.data.qvel[wiping.scene.arm_dof[0]] = 1e12
+    with pytest.raises(RuntimeError, match="unstable"):
+        wiping.approach(0.7)

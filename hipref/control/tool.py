@@ -202,3 +202,4 @@ class ToolController:
             features,
             tool_xy,
         )
+        self.scene.check_stable()

@@ -307,6 +307,7 @@ class PushingTask:
             controller.q_ref,
             controller.force,
         )
+        scene.check_stable()
         final_error = float(np.linalg.norm(self._cube_xy() - self.goal))
         success = final_error <= cfg.scene.goal_tolerance
         return Push(features, cube_xy, final_error, success)

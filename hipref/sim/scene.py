@@ -185,6 +185,17 @@ class Scene:
         # constants the cube would move as if it had its compiled mass while weighing the new one.
         mujoco.mj_setConst(self.model, self.data)
 
+    def check_stable(self) -> None:
+        """Raise if MuJoCo found the simulation unstable since the last reset: it then resets the state to
+        the model's defaults and carries on, so what followed is not the episode that was asked for."""
+        for warning, what in (("BADQPOS", "position"), ("BADQVEL", "velocity"), ("BADQACC", "acceleration")):
+            unstable = self.data.warning[getattr(mujoco.mjtWarning, f"mjWARN_{warning}")]
+            if unstable.number:
+                raise RuntimeError(
+                    f"the simulation became unstable (NaN, Inf or huge {what} at dof {unstable.lastinfo}) "
+                    f"and MuJoCo reset it; the episode is void (simulated time now {self.data.time:.3f} s)"
+                )
+
     def wrist_force_world(self, reading: np.ndarray | None = None) -> np.ndarray:
         """The force the environment exerts on the tool, in the world frame, from the wrist F/T sensor.
 
