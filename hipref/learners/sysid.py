@@ -175,8 +175,12 @@ class SIModel(nn.Module):
 
     @torch.no_grad()
     def predict(self, features: np.ndarray) -> np.ndarray:
-        """`estimate` for numpy input, in parameter units, as a numpy array (a 0-d array for one vector)."""
-        return self.estimate(torch.as_tensor(np.asarray(features), dtype=torch.float32)).numpy()
+        """`estimate` for numpy input, in parameter units, as a float64 array (0-d for one vector).
+
+        An expectation over Phi lies inside its range, but summed in float32 a distribution collapsed on
+        an end of the range can round past it (0.90000004 m): the estimate is clipped to the range."""
+        estimate = self.estimate(torch.as_tensor(np.asarray(features), dtype=torch.float32)).numpy()
+        return np.clip(estimate.astype(np.float64), self.candidates.low, self.candidates.high)
 
 
 @dataclass(frozen=True)
