@@ -223,4 +223,5 @@ class PretrainedCoach:
         log_pi = torch.log_softmax(self.policy(s)[0], 0)[query.action]
         gradient = torch.autograd.grad(log_pi, self.parameters)
         with torch.no_grad():
-            torch._foreach_add_(self.parameters, gradient, alpha=self.config.learning_rate * f)
+            for parameter, slope in zip(self.parameters, gradient, strict=True):
+                parameter.add_(slope, alpha=self.config.learning_rate * f)
