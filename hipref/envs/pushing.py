@@ -43,7 +43,7 @@ from hipref.control.tool import (
     wrist_force,
     write_features,
 )
-from hipref.envs.wiping import PostureSeed, check_parameter
+from hipref.envs.wiping import PostureSeed, check_parameter, reached, wrap_joints
 from hipref.sim.config import SceneConfig
 from hipref.sim.scene import Scene, make_scene
 from hipref.validation import check_range
@@ -189,8 +189,7 @@ class PushingTask:
         self._scratch.qpos[scene.arm_qpos] = self._seed.seed(tool_xy, yaw)
         target = np.array([tool_xy[0], tool_xy[1], self._tool_height()])
         q, residual = self.controller.ik.solve(self._scratch, target, rotation)
-        q = (q + math.pi) % (2 * math.pi) - math.pi
-        return q, rotation, residual
+        return wrap_joints(q), rotation, residual
 
     def _reachable(self, tool_xy: np.ndarray, direction: np.ndarray) -> bool:
         """Whether the arm reaches the tool pose, on its elbow-up branch inside the joint limits, with no
@@ -198,8 +197,7 @@ class PushingTask:
         scene = self.scene
         m, scratch = scene.model, self._scratch
         q, _, residual = self._arm_pose(tool_xy, direction)
-        low, high = m.jnt_range[scene.arm_qpos].T
-        if residual > self.config.reach_residual or np.any(q < low) or np.any(q > high):
+        if not reached(scene, q, residual, self.config.reach_residual):
             return False
         # Shoulder lifted, elbow bent up: the other branches flip through singularities on the way.
         if not q[1] < 0.0 < q[2]:

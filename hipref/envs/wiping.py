@@ -53,22 +53,16 @@ class PostureSeed:
         return seed
 
 
-def check_reached(scene: Scene, q: np.ndarray, residual: float, tolerance: float, where: str) -> np.ndarray:
-    """`q` (joint positions from inverse kinematics) wrapped to [-pi, pi), refused with a ValueError naming
-    `where` if the tool missed its target by more than `tolerance` m or a joint is outside its range."""
-    q = (q + math.pi) % (2 * math.pi) - math.pi
+def wrap_joints(q: np.ndarray) -> np.ndarray:
+    """Joint positions wrapped to [-pi, pi): the same pose, as inverse kinematics may return it wound up."""
+    return (q + math.pi) % (2 * math.pi) - math.pi
+
+
+def reached(scene: Scene, q: np.ndarray, residual: float, tolerance: float) -> bool:
+    """Whether inverse kinematics put the tool within `tolerance` m of its target (`residual`) with every
+    joint of `q` inside its range."""
     low, high = scene.model.jnt_range[scene.arm_qpos].T
-    if residual > tolerance or np.any(q < low) or np.any(q > high):
-        raise ValueError(
-            f"the arm cannot place the tool {where}: inverse kinematics ends {residual:.4f} m off "
-            f"(tolerance {tolerance} m) at joints {np.round(q, 3).tolist()} (ranges {low.round(2).tolist()} "
-            f"to {high.round(2).tolist()})"
-        )
-    return q
-
-
-REACH_RESIDUAL = 1e-3
-"""Largest inverse-kinematics position error in m accepted when the arm is placed for an episode."""
+    return residual <= tolerance and bool(np.all(q >= low)) and bool(np.all(q <= high))
 
 
 def check_parameter(name: str, value: float, bounds: tuple[float, float]) -> float:
@@ -99,6 +93,8 @@ class WipingConfig:
     into a contact force of about K_d times the depth."""
     in_band_fraction: float = 0.8
     """Fraction of a stroke's control periods whose contact force must lie in the safe band."""
+    reach_residual: float = 1e-3
+    """Largest inverse-kinematics position error in m accepted when the arm is placed above the desk."""
     hover_height: float = 0.95
     """Height in m of the tool tip at reset: above the highest desk."""
     approach_speed: float = 0.5
@@ -111,6 +107,7 @@ class WipingConfig:
         check_range("in_band_fraction", self.in_band_fraction, 0.0, 1.0)
         check_range("approach_speed", self.approach_speed, 0.01, 2.0)
         check_range("approach_clearance", self.approach_clearance, 0.0, 0.2)
+        check_range("reach_residual", self.reach_residual, 1e-6, 0.05)
         if not 0 <= self.force_band[0] < self.force_band[1]:
             raise ValueError(f"force_band must be (low, high) with 0 <= low < high, got {self.force_band!r}")
         if not self.height_range[1] + 0.03 <= self.hover_height <= 1.2:
@@ -173,7 +170,13 @@ class WipingTask:
         target = np.array([tool_xy[0], tool_xy[1], self.config.hover_height])
         self._scratch.qpos[scene.arm_qpos] = self._seed.seed(target[:2])
         q, residual = self.controller.ik.solve(self._scratch, target, self.rotation)
-        q = check_reached(scene, q, residual, REACH_RESIDUAL, f"above {tuple(tool_xy)}")
+        q = wrap_joints(q)
+        if not reached(scene, q, residual, self.config.reach_residual):
+            raise ValueError(
+                f"the arm cannot place the tool above {tuple(tool_xy)}: inverse kinematics ends "
+                f"{residual:.4f} m off (tolerance {self.config.reach_residual} m) at joints "
+                f"{np.round(q, 3).tolist()}"
+            )
         mujoco.mj_resetData(m, d)
         d.qpos[scene.arm_qpos] = q
         mujoco.mj_forward(m, d)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -313,6 +313,20 @@ def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
     return CoPESILearner(model, cell.noise, config, seed)
 
 
+class RunStreams(NamedTuple):
+    """A run's independent random streams, children of its seed's SeedSequence."""
+
+    environment: np.random.SeedSequence
+    teacher: np.random.SeedSequence
+    learner: np.random.SeedSequence
+    learning: np.random.SeedSequence
+    evaluation: np.random.SeedSequence
+
+
+def run_streams(seed: int) -> RunStreams:
+    return RunStreams(*np.random.SeedSequence(seed).spawn(5))
+
+
 @dataclass(frozen=True)
 class EvaluationSpec:
     """What a run's evaluation episodes depend on: not the method, the noise level or N."""
@@ -320,7 +334,7 @@ class EvaluationSpec:
     domain: str
     ground_truth: float
     seed: int
-    """The run's seed; its fifth SeedSequence child seeds the evaluations."""
+    """The run's seed, whose `run_streams(seed).evaluation` seeds the evaluations."""
     checkpoints: int
     eval_episodes: int
     history: int
@@ -336,9 +350,8 @@ def evaluation_episodes(world: World, spec: EvaluationSpec) -> list[list[Episode
     so they are built once (cached) and the methods' runs differ only in what SI makes of them."""
 
     def build() -> list[list[Episode]]:
-        eval_seq = np.random.SeedSequence(spec.seed).spawn(5)[4]
         checkpoints = []
-        for seq in eval_seq.spawn(spec.checkpoints):
+        for seq in run_streams(spec.seed).evaluation.spawn(spec.checkpoints):
             rng = np.random.default_rng(seq)
             episodes = []
             for _ in range(spec.eval_episodes):
@@ -355,8 +368,7 @@ def run_si(cell: SIRun) -> pd.DataFrame:
     spec = domain_spec(cell.domain)
     model = pretrained_model(cell.domain, cell.data)
     with _one_thread():
-        # The fifth child seeds the evaluations (evaluation_episodes).
-        env_seq, teacher_seq, learner_seq, learn_seq, _ = np.random.SeedSequence(cell.seed).spawn(5)
+        env_seq, teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed)
         ground_truth = cell.ground_truth
         if ground_truth is None:
             ground_truth = float(

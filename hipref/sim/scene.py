@@ -142,6 +142,14 @@ def build_spec(config: SceneConfig, *, with_cube: bool) -> mujoco.MjSpec:
     return spec
 
 
+_UNSTABLE = (
+    (mujoco.mjtWarning.mjWARN_BADQPOS, "position"),
+    (mujoco.mjtWarning.mjWARN_BADQVEL, "velocity"),
+    (mujoco.mjtWarning.mjWARN_BADQACC, "acceleration"),
+)
+"""The warnings MuJoCo raises, before resetting the state, when the simulation diverges."""
+
+
 @dataclass
 class Scene:
     """A compiled scene with the ids the controllers and tasks need."""
@@ -188,8 +196,8 @@ class Scene:
     def check_stable(self) -> None:
         """Raise if MuJoCo found the simulation unstable since the last reset: it then resets the state to
         the model's defaults and carries on, so what followed is not the episode that was asked for."""
-        for warning, what in (("BADQPOS", "position"), ("BADQVEL", "velocity"), ("BADQACC", "acceleration")):
-            unstable = self.data.warning[getattr(mujoco.mjtWarning, f"mjWARN_{warning}")]
+        for warning, what in _UNSTABLE:
+            unstable = self.data.warning[warning]
             if unstable.number:
                 raise RuntimeError(
                     f"the simulation became unstable (NaN, Inf or huge {what} at dof {unstable.lastinfo}) "
