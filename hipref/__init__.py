@@ -13,3 +13,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl" if ctypes.util.find_library("EGL") else "disable")
 
 __version__ = "0.1.0"
+
+# `gymnasium.make("hipref/DeskWiping-v0")` and "hipref/Pushing-v0" work once the package is imported; the
+# registration waits for gymnasium to load, so this import loads no numerical library.
+import hipref.envs  # noqa: F401

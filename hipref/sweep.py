@@ -11,6 +11,14 @@ the package's source (`code_version`), so an interrupted sweep resumes where it 
 algorithm never reuses stale rows. `cached_artefact` does the same for expensive shared objects (an SI
 pre-training dataset, a pretrained model, demonstrations).
 
+A cache entry is used only if it holds what would be computed: a cell's entry must be a DataFrame with
+the tidy columns, an artefact's whatever its caller's `expect` says; anything else (a damaged, stale or
+foreign pickle) is recomputed with a warning.
+
+Local workers never outlive the sweep: an interrupted sweep (KeyboardInterrupt, or the loop over its rows
+closed early) terminates the cells still running, and a worker whose parent dies (a notebook kernel
+killed with SIGKILL) exits at once.
+
 This module imports only the standard library (and tqdm) at load time: a spawned worker runs
 `_init_worker` before numpy or torch are loaded, so their one-thread settings take effect.
 """
@@ -25,9 +33,12 @@ import functools
 import hashlib
 import json
 import multiprocessing
+import multiprocessing.connection
 import os
 import pickle
+import signal
 import sys
+import threading
 import traceback
 import warnings
 from collections.abc import Callable, Generator, Iterator, Sequence
@@ -38,7 +49,7 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar
 from tqdm.auto import tqdm
 
 import hipref
-from hipref.results import repo_root, write_bytes
+from hipref.results import TIDY_COLUMNS, repo_root, write_bytes
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -53,6 +64,14 @@ NO_CACHE: Literal[False] = False
 
 _THREAD_ENV = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 _ARTEFACTS: dict[str, Any] = {}
+
+_PARENT_POLL_SECONDS = 1.0
+"""How often a worker checks that its parent still lives, besides being woken when the parent's end of
+its start-up pipe closes."""
+_ORPHAN_EXIT_CODE = 70
+"""Exit status of a worker that stopped because its parent died."""
+_PR_SET_PDEATHSIG = 1
+"""prctl option (linux/prctl.h): the signal the kernel sends a process when its parent thread exits."""
 
 
 class SweepError(RuntimeError):
@@ -133,17 +152,56 @@ def cell_key(fn: CellFn, cell: Any) -> str:
     return _key(f"{fn.__module__}.{fn.__qualname__}", _describe(cell))
 
 
-def _load(path: Path, expected: type | None = None) -> tuple[bool, Any]:
-    """Read a cache entry; (False, None) when absent or unreadable, with a warning in the second case."""
+@dataclasses.dataclass(frozen=True)
+class Expect:
+    """What a cached artefact must be for a copy loaded from disk to be used (see `cached_artefact`)."""
+
+    kind: type | tuple[type, ...]
+    """The type (or types) the artefact is an instance of."""
+    check: Callable[[Any], bool] | None = None
+    """Further test of a value of that type, such as its shapes or length: true for what `build` makes.
+    A check that raises counts as failed."""
+
+    def problem(self, value: Any) -> str | None:
+        """Why `value` is not such an artefact, or None when it is."""
+        if not isinstance(value, self.kind):
+            kinds = self.kind if isinstance(self.kind, tuple) else (self.kind,)
+            names = " or ".join(kind.__name__ for kind in kinds)
+            return f"it holds {type(value).__name__}, expected {names}"
+        if self.check is None:
+            return None
+        name = getattr(self.check, "__qualname__", repr(self.check))
+        try:
+            ok = self.check(value)
+        except Exception as err:
+            return f"its check {name} raised {err!r}"
+        return None if ok else f"it fails its check {name}"
+
+
+def _rows_problem(rows: Any) -> str | None:
+    """Why `rows` is not a valid cell entry (a DataFrame with the tidy columns), or None when it is."""
+    import pandas as pd
+
+    if not isinstance(rows, pd.DataFrame):
+        return f"it holds {type(rows).__name__}, expected a pandas DataFrame"
+    missing = [column for column in TIDY_COLUMNS if column not in rows.columns]
+    return f"its rows lack the tidy column(s) {missing}" if missing else None
+
+
+def _load(path: Path, problem: Callable[[Any], str | None] | None = None) -> tuple[bool, Any]:
+    """Read a cache entry; (False, None) when absent, unreadable or, by `problem`, not what it should
+    hold, with a warning in the last two cases."""
     if not path.exists():
         return False, None
     try:
         with path.open("rb") as f:
             value = pickle.load(f)
-        if expected is not None and not isinstance(value, expected):
-            raise TypeError(f"holds {type(value).__name__}, expected {expected.__name__}")
     except Exception as err:
-        warnings.warn(f"ignoring unreadable cache entry {path} ({err!r}); recomputing it", stacklevel=3)
+        reason: str | None = f"it is unreadable: {err!r}"
+    else:
+        reason = None if problem is None else problem(value)
+    if reason is not None:
+        warnings.warn(f"ignoring cache entry {path}: {reason}; recomputing it", stacklevel=3)
         return False, None
     return True, value
 
@@ -154,10 +212,42 @@ def _store(path: Path, value: Any) -> None:
 
 def _init_worker() -> None:
     """Worker initializer: one thread per run, so parallel runs do not oversubscribe the cores and
-    floating-point reductions happen in one order whatever the machine."""
+    floating-point reductions happen in one order whatever the machine; and the worker ends with its
+    parent."""
     os.environ.update(dict.fromkeys(_THREAD_ENV, "1"))
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(1)
+    _exit_with_parent()
+
+
+def _exit_with_parent() -> None:
+    """Make this worker process exit as soon as the process that started it dies.
+
+    A pool's idle workers wait on a queue that their parent alone would close, and busy ones run their
+    cell to the end: after a SIGKILL to the parent (a notebook kernel killed, an out-of-memory kill) they
+    would be left running. On Linux the kernel kills the worker when its parent exits (PR_SET_PDEATHSIG:
+    strictly, when the parent *thread* that started it exits, which is the thread iterating the sweep,
+    alive until the pool has shut down). Elsewhere, and as a second line, a watchdog thread wakes when
+    the parent's end of the start-up pipe closes, or notices the parent pid change, and exits; it needs
+    the interpreter lock, so compiled code that holds it delays it."""
+    parent = multiprocessing.parent_process()
+    if parent is None:  # not started by multiprocessing: nothing to watch
+        return
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+
+    # The watchdog also covers a parent that died before the death signal was armed: its first wait
+    # returns at once.
+    def watch() -> None:
+        while not multiprocessing.connection.wait([parent.sentinel], timeout=_PARENT_POLL_SECONDS):
+            if os.getppid() != parent.pid:
+                break
+        os._exit(_ORPHAN_EXIT_CODE)
+
+    threading.Thread(target=watch, name="hipref-sweep-parent-watch", daemon=True).start()
 
 
 @contextlib.contextmanager
@@ -203,6 +293,7 @@ def _run_local(fn: CellFn, cells: dict[str, Any], workers: int) -> Outcomes:
     # "spawn" starts clean interpreters: safe under Jupyter and with torch, where fork can deadlock.
     context = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(min(workers, len(cells)), mp_context=context, initializer=_init_worker)
+    finished = False
     try:
         futures = {pool.submit(_run_cell, fn, cell): key for key, cell in cells.items()}
         for future in as_completed(futures):
@@ -210,8 +301,24 @@ def _run_local(fn: CellFn, cells: dict[str, Any], workers: int) -> Outcomes:
                 yield futures[future], *future.result()
             except Exception:  # the worker process died (e.g. out of memory)
                 yield futures[future], False, traceback.format_exc()
+        finished = True
     finally:
+        if not finished:
+            # Interrupted (KeyboardInterrupt, or the caller stopped reading): nobody will read the rows of
+            # the running cells, so stop them rather than wait for them.
+            _terminate_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate_workers(pool: ProcessPoolExecutor) -> None:
+    """Terminate a pool's worker processes (Python 3.14 has `terminate_workers`; 3.11 keeps them in
+    `_processes`)."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+        return
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        process.terminate()
 
 
 def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str) -> Outcomes:
@@ -229,6 +336,19 @@ def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str) -> Outcomes:
                 yield futures[future], *future.result()
             except Exception:  # the task was lost, e.g. its worker died repeatedly
                 yield futures[future], False, traceback.format_exc()
+
+
+def _store_rows(fn: CellFn, path: Path, rows: pd.DataFrame) -> None:
+    """Cache a cell's rows, unless they could never be loaded back as a valid entry."""
+    problem = _rows_problem(rows)
+    if problem is not None:
+        warnings.warn(
+            f"rows of {fn.__module__}.{fn.__qualname__} are not cached, as {problem} and a cell entry "
+            f"must hold the tidy columns {list(TIDY_COLUMNS)}",
+            stacklevel=3,
+        )
+        return
+    _store(path, rows)
 
 
 def run_sweep(
@@ -257,7 +377,7 @@ def run_sweep(
     done: dict[str, pd.DataFrame] = {}
     if directory is not None:
         for key in dict.fromkeys(keys):
-            found, rows = _load(directory / "cells" / f"{key}.pkl", pd.DataFrame)
+            found, rows = _load(directory / "cells" / f"{key}.pkl", _rows_problem)
             if found:
                 done[key] = rows
     # Equal cells share a key and are computed once.
@@ -279,7 +399,7 @@ def run_sweep(
                     if ok:
                         done[key] = result
                         if directory is not None:
-                            _store(directory / "cells" / f"{key}.pkl", result)
+                            _store_rows(fn, directory / "cells" / f"{key}.pkl", result)
                     else:
                         failures[key] = result
                     bar.update(count[key])
@@ -292,23 +412,41 @@ def run_sweep(
     return pd.concat([done[key] for key in keys], ignore_index=True)
 
 
-def cached_artefact(name: str, config: Any, build: Callable[[], T], *, cache_dir: CacheDir = None) -> T:
+def cached_artefact(
+    name: str,
+    config: Any,
+    build: Callable[[], T],
+    *,
+    cache_dir: CacheDir = None,
+    expect: type | tuple[type, ...] | Expect | None = None,
+) -> T:
     """Build an expensive shared object once per (name, config, code version) and reuse it.
 
     Stored as `<cache_dir>/artefacts/<name>-<key>.pkl` (pickle handles torch modules and tensors) and
     kept in memory for the rest of the process, so every caller gets the same object: do not mutate it.
-    An entry that fails to load is rebuilt, with a warning.
+    `expect` (a type, types, or an `Expect` with a check of shapes and lengths) is what the artefact must
+    be: an entry that fails to load or holds anything else is rebuilt, with a warning, and a freshly built
+    object that does not meet it raises TypeError.
     """
     if not all(c.isalnum() or c in "_.-" for c in name) or not name:
         raise ValueError(f"artefact name must be letters, digits, '_', '.' or '-', got {name!r}")
+    if expect is not None and not isinstance(expect, Expect):
+        kinds = expect if isinstance(expect, tuple) else (expect,)
+        if not kinds or not all(isinstance(kind, type) for kind in kinds):
+            raise ValueError(f"expect must be a type, a tuple of types, an Expect or None, got {expect!r}")
+        expect = Expect(expect)
+    problem = None if expect is None else expect.problem
     key = _key(name, _describe(config))
     if key in _ARTEFACTS:
         return _ARTEFACTS[key]
     directory = _resolve_cache_dir(cache_dir)
     path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
-    found, value = (False, None) if path is None else _load(path)
+    found, value = (False, None) if path is None else _load(path, problem)
     if not found:
         value = build()
+        reason = None if problem is None else problem(value)
+        if reason is not None:
+            raise TypeError(f"artefact {name!r} was built but not cached, as {reason}")
         if path is not None:
             _store(path, value)
     _ARTEFACTS[key] = value

@@ -4,7 +4,8 @@ Every execution of `toy_cell` leaves a marker file in the cell's `log_dir`, name
 process, so a test can count exactly which cells ran, and where.
 
 Run as `python -m tests._sweep_cells CACHE_DIR LOG_DIR` it performs the slow sweep that the resume test
-kills half-way.
+kills half-way; as `python -m tests._sweep_cells --stuck LOG_DIR` it runs, on two workers, cells that
+would take ten minutes, for the tests that interrupt or kill a sweep.
 """
 
 from __future__ import annotations
@@ -99,6 +100,18 @@ def resume_cells(log_dir: str) -> list[ToyCell]:
     return [ToyCell(seed=seed, log_dir=log_dir, sleep=0.3) for seed in range(8)]
 
 
+STUCK_WORKERS = 2
+"""Worker processes of the stuck sweep."""
+
+
+def stuck_cells(log_dir: str) -> list[ToyCell]:
+    """Four cells of ten minutes each: whatever stops the sweep, it is not their end."""
+    return [ToyCell(seed=seed, log_dir=log_dir, sleep=600.0) for seed in range(4)]
+
+
 if __name__ == "__main__":
-    cache_dir, log_dir = sys.argv[1:3]
-    run_sweep(toy_cell, resume_cells(log_dir), cache_dir=cache_dir, workers=1, desc="resume")
+    if sys.argv[1] == "--stuck":
+        run_sweep(toy_cell, stuck_cells(sys.argv[2]), cache_dir=False, workers=STUCK_WORKERS, desc="stuck")
+    else:
+        cache_dir, log_dir = sys.argv[1:3]
+        run_sweep(toy_cell, resume_cells(log_dir), cache_dir=cache_dir, workers=1, desc="resume")

@@ -147,7 +147,7 @@ def test_equal_cells_are_computed_once(log_dir: Path) -> None:
     assert list(df["seed"]) == [3] * 5 + [4] * 5 + [3] * 5
 
 
-@pytest.mark.parametrize("damage", ["truncate", "garbage", "wrong_type"])
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "wrong_type", "untidy_frame"])
 def test_damaged_cache_entry_is_recomputed_with_a_warning(tmp_path: Path, log_dir: Path, damage: str) -> None:
     cells = grid(log_dir)
     cache = tmp_path / "cache"
@@ -157,8 +157,10 @@ def test_damaged_cache_entry_is_recomputed_with_a_warning(tmp_path: Path, log_di
         victim.write_bytes(victim.read_bytes()[:50])
     elif damage == "garbage":
         victim.write_bytes(b"not a pickle at all")
-    else:
+    elif damage == "wrong_type":
         victim.write_bytes(pickle.dumps(["a list, not a DataFrame"]))
+    else:  # a frame, but not rows of a cell: a stale or foreign pickle
+        victim.write_bytes(pickle.dumps(pd.DataFrame({"seed": [cells[2].seed], "value": [0.0]})))
 
     with pytest.warns(UserWarning, match=victim.name):
         again = run_sweep(toy_cell, cells, cache_dir=cache, workers=1)
@@ -279,3 +281,68 @@ def test_corrupted_artefact_is_rebuilt_with_a_warning(tmp_path: Path) -> None:
     assert len(builds) == 2
     assert pickle.loads(path.read_bytes()) == value, "the rebuilt artefact replaced the damaged file"
     assert [p.name for p in (tmp_path / "artefacts").iterdir()] == [path.name], "no temporary file left"
+
+
+def _untidy_cell(cell: ToyCell) -> pd.DataFrame:
+    return pd.DataFrame({"seed": [cell.seed], "value": [1.0]})
+
+
+def test_rows_without_the_tidy_columns_are_returned_but_not_cached(tmp_path: Path) -> None:
+    cells = [ToyCell(seed=0), ToyCell(seed=1)]
+    untidy = r"_untidy_cell are not cached.*lack the tidy column\(s\) \['domain'"
+    with pytest.warns(UserWarning, match=untidy):
+        rows = run_sweep(_untidy_cell, cells, cache_dir=tmp_path, workers=1)
+    assert list(rows["seed"]) == [0, 1]
+    assert entries(tmp_path) == [], "an entry that could never be loaded back is not written"
+
+
+def _square_pair() -> tuple[list[int], list[int]]:
+    return [1, 2, 3], [1, 4, 9]
+
+
+def _paired(value: tuple[list[int], list[int]]) -> bool:
+    return len(value) == 2 and len(value[0]) == len(value[1])
+
+
+@pytest.mark.parametrize(
+    ("stale", "match"),
+    [
+        ({"a": "dict from another version"}, "holds dict, expected tuple"),
+        (([1, 2, 3], [1, 4]), "fails its check _paired"),
+        ((1, 2), "check _paired raised TypeError"),
+    ],
+)
+def test_a_stale_artefact_is_rebuilt_with_a_warning(tmp_path: Path, stale: object, match: str) -> None:
+    expect = sweep.Expect(tuple, _paired)
+    built = cached_artefact("pairs", {"n": 3}, _square_pair, cache_dir=tmp_path, expect=expect)
+    (path,) = (tmp_path / "artefacts").glob("pairs-*.pkl")
+    path.write_bytes(pickle.dumps(stale))
+    sweep.forget_artefacts()
+    with pytest.warns(UserWarning, match=match):
+        again = cached_artefact("pairs", {"n": 3}, _square_pair, cache_dir=tmp_path, expect=expect)
+    assert again == built
+    assert pickle.loads(path.read_bytes()) == built, "the rebuilt artefact replaced the stale file"
+
+
+def test_a_plain_type_is_enough_to_refuse_a_foreign_artefact(tmp_path: Path) -> None:
+    def build() -> dict[str, list[float]]:
+        return {"weights": [1.0]}
+
+    cached_artefact("model", {"n": 1}, build, cache_dir=tmp_path, expect=dict)
+    (path,) = (tmp_path / "artefacts").glob("model-*.pkl")
+    path.write_bytes(pickle.dumps(["not", "a", "model"]))
+    sweep.forget_artefacts()
+    with pytest.warns(UserWarning, match="holds list, expected dict"):
+        value = cached_artefact("model", {"n": 1}, build, cache_dir=tmp_path, expect=dict)
+    assert value == {"weights": [1.0]}
+
+
+def test_a_built_artefact_that_fails_its_expectation_is_refused_and_not_cached(tmp_path: Path) -> None:
+    with pytest.raises(TypeError, match="'model' was built but not cached, as it holds list, expected dict"):
+        cached_artefact("model", {"n": 1}, lambda: [1.0], cache_dir=tmp_path, expect=dict)
+    assert not list((tmp_path / "artefacts").glob("*.pkl"))
+
+
+def test_expect_must_be_types_or_an_expect() -> None:
+    with pytest.raises(ValueError, match="expect must be a type, a tuple of types, an Expect or None, got 3"):
+        cached_artefact("model", {"n": 1}, dict, cache_dir=False, expect=3)  # type: ignore[arg-type]

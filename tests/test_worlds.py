@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import subprocess
 import sys
 
 import gymnasium as gym
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import hipref.envs  # noqa: F401 - registers the environments
+import hipref  # noqa: F401 - registers the environments
 from hipref.envs.pushing import PushingTask
 from hipref.envs.wiping import WipingTask
 from hipref.sim import scene as scene_module
@@ -150,7 +151,6 @@ def test_the_reset_parameter_is_the_one_simulated() -> None:
 
 def test_rendering_without_gl_is_skipped_with_a_message() -> None:
     import os
-    import subprocess
 
     script = (
         "from hipref.envs.wiping import WipingTask\n"
@@ -194,3 +194,36 @@ def test_an_unstable_simulation_voids_the_episode(wiping: WipingTask) -> None:
     wiping.scene.data.qvel[wiping.scene.arm_dof[0]] = 1e12
     with pytest.raises(RuntimeError, match="unstable"):
         wiping.approach(0.7)
+
+
+def _fresh_python(script: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+@pytest.mark.parametrize("env_id", ["hipref/DeskWiping-v0", "hipref/Pushing-v0"])
+def test_importing_the_package_registers_the_environments(env_id: str) -> None:
+    result = _fresh_python(f"import hipref, gymnasium; gymnasium.make({env_id!r})")
+    assert result.returncode == 0, result.stderr
+
+
+def test_the_environments_register_when_gymnasium_was_imported_first() -> None:
+    script = (
+        "import gymnasium, hipref\n"
+        "for env_id in ('hipref/DeskWiping-v0', 'hipref/Pushing-v0'):\n"
+        "    assert env_id in gymnasium.registry, env_id\n"
+    )
+    result = _fresh_python(script)
+    assert result.returncode == 0, result.stderr
+
+
+def test_importing_the_package_loads_no_numerical_library() -> None:
+    """A sweep worker imports hipref before it sets the one-thread variables these libraries read once."""
+    script = (
+        "import sys, hipref, hipref.sweep\n"
+        "print(sorted(m for m in ('numpy', 'gymnasium', 'mujoco', 'torch', 'pandas') if m in sys.modules))"
+    )
+    result = _fresh_python(script)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"

@@ -3,7 +3,8 @@
 Both are goal-level environments: one `step` runs the low-level policy pi^l (admittance + IK + SPD) for a
 whole stroke or push, at the simulator's 2 ms time step, given the agent's estimate of the unknown
 parameter. `reset(seed=..., options={"param": value})` sets the unknown parameter (desk height in m, cube
-mass in kg); it is drawn uniformly from its range when absent."""
+mass in kg); it is drawn uniformly from its range when absent. Stepping before the first `reset`, or after
+the episode terminated or was truncated, raises `gymnasium.error.ResetNeeded`."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import numpy as np
 
 from hipref.envs.pushing import PushingConfig, PushingTask
 from hipref.envs.wiping import WipingConfig, WipingTask, check_parameter
+from hipref.validation import check_int
 
 RESET_OPTIONS = frozenset({"param"})
 
@@ -26,6 +28,24 @@ def _parameter(env: gym.Env, options: dict[str, Any] | None, bounds: tuple[float
     if options.get("param") is None:
         return float(env.np_random.uniform(*bounds))
     return check_parameter(name, options["param"], bounds)
+
+
+def _check_config(config: object, kind: type) -> None:
+    if config is not None and not isinstance(config, kind):
+        raise ValueError(f"config must be a {kind.__name__} or None, got {type(config).__name__}: {config!r}")
+
+
+def _check_running(env: gym.Env, episode_over: bool | None) -> None:
+    """Refuse a step outside an episode: the task's state would be the last episode's, or none at all."""
+    if episode_over is None:
+        raise gym.error.ResetNeeded(
+            f"{type(env).__name__}.step was called before reset (or after a reset that failed): call reset()"
+        )
+    if episode_over:
+        raise gym.error.ResetNeeded(
+            f"{type(env).__name__}.step was called after the episode ended (terminated, truncated or "
+            "voided by an error): call reset() to start a new episode"
+        )
 
 
 def _checked_action(space: gym.spaces.Box, action: Any) -> np.ndarray:
@@ -51,6 +71,8 @@ class DeskWipingEnv(gym.Env):
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
 
     def __init__(self, config: WipingConfig | None = None, max_strokes: int = 20) -> None:
+        _check_config(config, WipingConfig)
+        check_int("max_strokes", max_strokes, 1)
         self.task = WipingTask(config)
         cfg = self.task.config
         self.max_strokes = max_strokes
@@ -60,20 +82,26 @@ class DeskWipingEnv(gym.Env):
         self.action_space = gym.spaces.Box(low, high, dtype=np.float64)
         self._strokes = 0
         self._observation = np.zeros(21, dtype=np.float32)
+        self._episode_over: bool | None = None
+        """None outside an episode (before the first successful reset); else whether it has ended."""
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
+        self._episode_over = None
         cfg = self.task.config
         height = _parameter(self, options, cfg.height_range, "desk height")
         self.task.reset(height, (float(np.mean(cfg.area_x)), float(np.mean(cfg.area_y))))
         self._strokes = 0
         self._observation = self.task._features().astype(np.float32)
+        self._episode_over = False
         return self._observation.copy(), {"param": height}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        _check_running(self, self._episode_over)
         goal_x, goal_y, estimate = _checked_action(self.action_space, action)
+        self._episode_over = True  # until the stroke completes: a failed one leaves no episode to go on with
         stroke = self.task.stroke(np.array([goal_x, goal_y]), float(estimate))
         self._strokes += 1
         self._observation = stroke.features[-1].astype(np.float32)
@@ -85,7 +113,9 @@ class DeskWipingEnv(gym.Env):
             "success": stroke.success,
             "param": self.task.height,
         }
-        return self._observation.copy(), float(stroke.success), False, self._strokes >= self.max_strokes, info
+        truncated = self._strokes >= self.max_strokes
+        self._episode_over = truncated
+        return self._observation.copy(), float(stroke.success), False, truncated, info
 
 
 class PushingEnv(gym.Env):
@@ -101,12 +131,15 @@ class PushingEnv(gym.Env):
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
 
     def __init__(self, config: PushingConfig | None = None) -> None:
+        _check_config(config, PushingConfig)
         self.task = PushingTask(config)
         cfg = self.task.config
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(16,), dtype=np.float32)
         self.action_space = gym.spaces.Box(
             np.array([cfg.mass_range[0]]), np.array([cfg.mass_range[1]]), dtype=np.float64
         )
+        self._episode_over: bool | None = None
+        """None outside an episode (before the first successful reset); else whether it has ended."""
 
     def _observe(self) -> np.ndarray:
         scene = self.task.scene
@@ -120,13 +153,17 @@ class PushingEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
+        self._episode_over = None
         mass = _parameter(self, options, self.task.config.mass_range, "cube mass")
         start, goal = self.task.sample_layout(self.np_random)
         self.task.reset(mass, start, goal)
+        self._episode_over = False
         return self._observe(), {"param": mass}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        _check_running(self, self._episode_over)
         (estimate,) = _checked_action(self.action_space, action)
+        self._episode_over = True  # one push per episode, and a failed push voids it
         push = self.task.push(float(estimate))
         forces = np.linalg.norm(push.features[:, 12:15], axis=1)
         info = {

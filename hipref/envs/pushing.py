@@ -43,10 +43,10 @@ from hipref.control.tool import (
     wrist_force,
     write_features,
 )
-from hipref.envs.wiping import PostureSeed, check_parameter, reached, wrap_joints
+from hipref.envs.wiping import PostureSeed, check_interval, check_parameter, reached, wrap_joints
 from hipref.sim.config import SceneConfig
 from hipref.sim.scene import Scene, make_scene
-from hipref.validation import check_range
+from hipref.validation import check_int, check_range
 
 
 @dataclass(frozen=True)
@@ -96,8 +96,32 @@ class PushingConfig:
     """Longest time in s the cube is given to come to rest after the push."""
     rest_speed: float = 1e-3
     """Speed in m/s below which the cube counts as at rest and the push ends."""
+    layout_attempts: int = 1000
+    """Most random draws `PushingTask.sample_layout` makes before it gives up on the config; the default
+    layout needs a handful."""
 
     def __post_init__(self) -> None:
+        scene = self.scene
+        check_interval("mass_range", self.mass_range, 0.0, math.inf, low_open=True, unit="kg")
+        # The cube, centred anywhere in the area, stays on the desk.
+        half_x = scene.table_size[0] / 2 - scene.cube_size[0] / 2
+        half_y = scene.table_size[1] / 2 - scene.cube_size[1] / 2
+        check_interval("area_x", self.area_x, -half_x, half_x, unit="m", why=" (the cube stays on the desk)")
+        check_interval("area_y", self.area_y, -half_y, half_y, unit="m", why=" (the cube stays on the desk)")
+        # No start and goal of the area lie further apart than its diagonal.
+        diagonal = math.hypot(self.area_x[1] - self.area_x[0], self.area_y[1] - self.area_y[0])
+        check_interval(
+            "push_distance",
+            self.push_distance,
+            0.0,
+            diagonal,
+            low_open=True,
+            high_open=True,
+            point=True,
+            unit="m",
+            why=" (high below the diagonal of area_x x area_y, as start and goal both lie in the area)",
+        )
+        check_int("layout_attempts", self.layout_attempts, 1)
         check_range("desk_height", self.desk_height, 0.5, 0.9)
         check_range("planned_acceleration", self.planned_acceleration, 0.1, 10.0)
         check_range("brake_deceleration", self.brake_deceleration, 1.0, 100.0)
@@ -106,8 +130,6 @@ class PushingConfig:
         check_range("reach_residual", self.reach_residual, 1e-6, 0.05)
         check_range("settle_time", self.settle_time, 0.1, 10.0)
         check_range("rest_speed", self.rest_speed, 1e-5, 0.1)
-        if not 0 < self.push_distance[0] <= self.push_distance[1]:
-            raise ValueError(f"push_distance must be (low, high), 0 < low <= high: {self.push_distance!r}")
         if self.push_admittance.stiffness != 0.0:
             raise ValueError("push_admittance must have stiffness 0: the push tracks a force, not a position")
 
@@ -214,11 +236,12 @@ class PushingTask:
 
     def sample_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """A random cube start and goal, both inside the area, with the paddle's poses behind the cube at
-        the start and at the goal both reachable."""
+        the start and at the goal both reachable; a config for which `layout_attempts` draws find none is
+        refused, naming the fields that make layouts rare."""
         cfg = self.config
         low = np.array([cfg.area_x[0], cfg.area_y[0]])
         high = np.array([cfg.area_x[1], cfg.area_y[1]])
-        while True:
+        for _ in range(cfg.layout_attempts):
             start = rng.uniform(low, high)
             angle = rng.uniform(-np.pi, np.pi)
             u = np.array([np.cos(angle), np.sin(angle)])
@@ -228,6 +251,13 @@ class PushingTask:
             behind = u * self._standoff()
             if self._reachable(start - behind, u) and self._reachable(goal - behind, u):
                 return start, goal
+        raise ValueError(
+            f"no pushing layout found in layout_attempts={cfg.layout_attempts} draws: start and goal must "
+            f"both lie in area_x={cfg.area_x!r} x area_y={cfg.area_y!r} m, "
+            f"push_distance={cfg.push_distance!r} m apart, with the paddle behind the cube reachable at "
+            f"desk_height={cfg.desk_height!r} m within reach_residual={cfg.reach_residual!r} m; widen the "
+            "area, shorten push_distance, or raise layout_attempts"
+        )
 
     def reset(self, mass: float, start: np.ndarray, goal: np.ndarray) -> None:
         """Set the cube mass, put the cube at `start` with a face square to the goal, and the paddle's

@@ -7,6 +7,7 @@ inside the safe band for most of the way, which needs a good height estimate."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -71,6 +72,43 @@ def check_parameter(name: str, value: float, bounds: tuple[float, float]) -> flo
     return float(value)
 
 
+def check_interval(
+    name: str,
+    value: object,
+    low: float,
+    high: float,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+    point: bool = False,
+    unit: str = "",
+    why: str = "",
+) -> None:
+    """Raise ValueError naming the field, its allowed values and the value given unless `value` is a pair
+    (a, b) of finite numbers ordered a < b (a <= b when `point`) inside [low, high] (bounds excluded when
+    `low_open`, `high_open`; an infinite bound is no bound)."""
+    try:
+        a, b = (float(v) for v in value)  # type: ignore[attr-defined]
+        ok = math.isfinite(a) and math.isfinite(b) and (a <= b if point else a < b)
+        ok = ok and (a > low if low_open else a >= low) and (b < high if high_open else b <= high)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        bounds = "low " + ("<=" if point else "<") + " high"
+        if math.isfinite(low):
+            bounds = f"{low:g} {'<' if low_open else '<='} {bounds}"
+        if math.isfinite(high):
+            bounds = f"{bounds} {'<' if high_open else '<='} {high:g}"
+        unit = f" in {unit}" if unit else ""
+        raise ValueError(f"{name} must be (low, high){unit} with {bounds}{why}, got {value!r}")
+
+
+HOVER_CLEARANCE = 0.03
+"""Least height in m of the tool tip at reset above the highest desk of the range."""
+HOVER_CEILING = 1.2
+"""Greatest height in m of the tool tip at reset (the arm's base stands at 0.95 m)."""
+
+
 @dataclass(frozen=True)
 class WipingConfig:
     """The wiping task: desk-height range, wiping area, safe force band and the policy's motion."""
@@ -103,17 +141,33 @@ class WipingConfig:
     """Height in m above the estimated surface where the descent slows to the tool speed."""
 
     def __post_init__(self) -> None:
+        table = self.scene.table_size
+        # The desk stands on the floor with its top below the tool's hovering height. When that coupling
+        # fails, the error names the field the caller changed: the range, unless only the hover height was.
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        range_changed = tuple(self.height_range) != defaults["height_range"]
+        if self.hover_height != defaults["hover_height"] and not range_changed:
+            lowest = self.height_range[1] + HOVER_CLEARANCE
+            check_range("hover_height", self.hover_height, lowest, HOVER_CEILING)
+        else:
+            check_range("hover_height", self.hover_height, table[2] + HOVER_CLEARANCE, HOVER_CEILING)
+            check_interval(
+                "height_range",
+                self.height_range,
+                table[2],
+                self.hover_height - HOVER_CLEARANCE,
+                unit="m",
+                why=f" (at reset the tool hovers {HOVER_CLEARANCE} m above the highest desk, at hover_height="
+                f"{self.hover_height} m)",
+            )
+        check_interval("area_x", self.area_x, -table[0] / 2, table[0] / 2, unit="m", why=" (on the desk)")
+        check_interval("area_y", self.area_y, -table[1] / 2, table[1] / 2, unit="m", why=" (on the desk)")
+        check_interval("force_band", self.force_band, 0.0, math.inf, unit="N")
         check_range("press_depth", self.press_depth, 0.0, 0.05)
         check_range("in_band_fraction", self.in_band_fraction, 0.0, 1.0)
         check_range("approach_speed", self.approach_speed, 0.01, 2.0)
         check_range("approach_clearance", self.approach_clearance, 0.0, 0.2)
         check_range("reach_residual", self.reach_residual, 1e-6, 0.05)
-        if not 0 <= self.force_band[0] < self.force_band[1]:
-            raise ValueError(f"force_band must be (low, high) with 0 <= low < high, got {self.force_band!r}")
-        if not self.height_range[1] + 0.03 <= self.hover_height <= 1.2:
-            raise ValueError(
-                f"hover_height must be in [{self.height_range[1] + 0.03}, 1.2], got {self.hover_height}"
-            )
 
 
 @dataclass
