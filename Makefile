@@ -7,7 +7,31 @@ PROFILE ?= full
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9][0-9]_*.ipynb))
 export PYDEVD_DISABLE_FILE_VALIDATION := 1
 
-.PHONY: install reproduce test lab lint bench clean-cache
+# Only the full profile regenerates the committed results/; any other writes to results/<profile>/, which
+# git ignores.
+ifeq ($(PROFILE),full)
+RESULTS := results
+else
+RESULTS := results/$(PROFILE)
+endif
+
+# Prefix of a command whose results must not touch the checkout: HIPREF_RESULTS_DIR points at a fresh
+# temporary directory, removed when the command ends, fails or is interrupted.
+TEMP_RESULTS = tmp=$$(mktemp -d -t hipref-results.XXXXXX) && trap 'rm -rf "$$tmp"' EXIT && \
+	trap 'exit 130' INT TERM && HIPREF_RESULTS_DIR=$$tmp
+
+# $(call execute,PROFILE,RESULTS DIR,OUTPUT DIR): run every notebook through papermill with the profile's
+# parameters, its results written to RESULTS DIR and the executed notebook to OUTPUT DIR.
+define execute
+	mkdir -p $(3)
+	for nb in $(NOTEBOOKS); do \
+		name=$$(basename $$nb .ipynb); \
+		HIPREF_RESULTS_DIR=$(abspath $(2)) $(VENV)/bin/papermill --kernel hipref --cwd notebooks \
+			-f params/$(1)/$$name.yaml $$nb $(3)/$$name.ipynb || exit 1; \
+	done
+endef
+
+.PHONY: install reproduce notebooks test lint pytest nbval lab bench
 
 install: $(VENV)/.installed
 
@@ -18,19 +42,26 @@ $(VENV)/.installed: environment.txt pyproject.toml
 	$(PY) -m ipykernel install --sys-prefix --name hipref --display-name "Python (hipref)" >/dev/null
 	touch $@
 
-# Execute every notebook with the chosen profile's parameters, in order.
+# Execute every notebook with the chosen profile's parameters, in order, into $(RESULTS)/notebooks/.
 reproduce: install
-	mkdir -p results/notebooks
-	for nb in $(NOTEBOOKS); do \
-		name=$$(basename $$nb .ipynb); \
-		$(VENV)/bin/papermill --kernel hipref --cwd notebooks \
-			-f params/$(PROFILE)/$$name.yaml $$nb results/notebooks/$$name.ipynb || exit 1; \
-	done
+	$(call execute,$(PROFILE),$(RESULTS),$(RESULTS)/notebooks)
 
-test: install
+# Re-execute the committed notebooks in place at the quick profile (what nbval checks); results to results/quick/.
+notebooks: install
+	$(call execute,quick,results/quick,notebooks)
+
+# In this order; `make nbval NOTEBOOKS=notebooks/06_noise_estimation.ipynb` checks a single notebook.
+test: lint pytest nbval
+
+lint: install
 	$(VENV)/bin/ruff check hipref tests notebooks
-	$(VENV)/bin/pytest tests
-	$(VENV)/bin/pytest --nbval-lax notebooks --nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
+
+pytest: install
+	$(TEMP_RESULTS) $(VENV)/bin/pytest tests
+
+nbval: install
+	$(TEMP_RESULTS) $(VENV)/bin/pytest --nbval-lax $(NOTEBOOKS) \
+		--nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
 
 lab: install
 	$(VENV)/bin/jupyter lab notebooks
