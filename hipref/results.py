@@ -16,6 +16,7 @@ import io
 import os
 import re
 import secrets
+import tempfile
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -31,12 +32,16 @@ TIDY_COLUMNS: tuple[str, ...] = ("domain", "method", "noise", "seed", "episode",
 
 METRICS: tuple[str, ...] = (
     "param_error",
+    "param_error_argmax",
+    "param_error_multislice",
     "success_rate",
     "cells_wiped",
     "force_mean",
     "force_std",
     "estimated_noise",
     "true_noise",
+    "filter_precision",
+    "filter_recall",
 )
 """The metric names a results frame may use; a study that measures something new adds it here."""
 
@@ -69,6 +74,33 @@ def results_dir() -> Path:
         return Path(env)
     root = repo_root()
     return (root if root is not None else Path.cwd()) / "results"
+
+
+RESULT_FOLDERS: tuple[str, ...] = ("data", "figures", "tables")
+"""Folders of the results directory the notebooks write into (claims.md sits at its top)."""
+
+
+def check_writable(directory: str | os.PathLike[str] | None = None) -> Path:
+    """Refuse, before any compute, a results directory the study cannot write; returns it.
+
+    `directory` (default `results_dir()`) and its `RESULT_FOLDERS` are created if missing, and a probe
+    file is written to and removed from each. Raises PermissionError naming the folder that fails and
+    `HIPREF_RESULTS_DIR`, which moves the results elsewhere.
+    """
+    root = Path(results_dir() if directory is None else directory)
+    for folder in (root, *(root / name for name in RESULT_FOLDERS)):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            # A unique probe name, so notebooks checking the same folder side by side do not collide.
+            fd, probe = tempfile.mkstemp(prefix=".write-check.", suffix=".tmp", dir=folder)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as error:
+            raise PermissionError(
+                f"results directory {folder} is not writable ({error.strerror or error}); make it writable "
+                "or set HIPREF_RESULTS_DIR to a writable directory"
+            ) from error
+    return root
 
 
 def write_bytes(data: bytes, path: str | os.PathLike[str]) -> Path:

@@ -3,8 +3,10 @@
 1. Controller ablation: desk at 0.81 m, the wiping policy given desired heights 0.72-0.80 m, the same
    start and the same random trajectory on the desk for plain SPD and for admittance + SPD; the z-axis
    wrist force's mean and standard deviation (`force_mean`, `force_std`).
-2. Success against estimate error: each task executed with the true parameter plus an error; the
-   fraction of successes at each error (`success_rate`) is what gives the SI studies their meaning.
+2. Success against estimate error: each task executed with the estimate off the true parameter by an
+   error; the fraction of successes at each error (`success_rate`) is what gives the SI studies their
+   meaning. The estimate is never clipped to the parameter's range: the true parameter is drawn only from
+   the part of its range where the estimate stays inside, so the error on the x axis is the real error.
 """
 
 from __future__ import annotations
@@ -14,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from hipref.envs.pushing import PushingTask
-from hipref.envs.wiping import WipingTask
+from hipref.envs.pushing import PushingConfig, PushingTask
+from hipref.envs.wiping import WipingConfig, WipingTask
 from hipref.sweep import run_sweep
 from hipref.validation import check_int, check_range
 
@@ -40,6 +42,12 @@ class ControllersConfig:
     """Random episodes (parameter, start and goal) per estimate error."""
     seed: int = 0
     """Root seed; every episode's seed derives from it."""
+    claim_height_error: float = 0.05
+    """Height error in m at which the wiping task should mostly fail (claim: success at most 0.3 at
+    +- this error, at least 0.9 at 0); 0 and +- it must be in `height_errors`."""
+    claim_mass_error: float = 4.0
+    """Mass error in kg at which the pushing task should mostly fail (the same claim); 0 and +- it must be
+    in `mass_errors`."""
 
     def __post_init__(self) -> None:
         check_range("desk_height", self.desk_height, 0.5, 0.9)
@@ -49,10 +57,34 @@ class ControllersConfig:
         check_int("ablation_seeds", self.ablation_seeds, 1, 1000)
         check_int("curve_seeds", self.curve_seeds, 1, 10000)
         check_int("seed", self.seed, 0)
-        for e in self.height_errors:
-            check_range("height_errors", e, -0.2, 0.2)
-        for e in self.mass_errors:
-            check_range("mass_errors", e, -12.0, 12.0)
+        for name, errors, claim_name, claim, (low, high) in (
+            (
+                "height_errors",
+                self.height_errors,
+                "claim_height_error",
+                self.claim_height_error,
+                WipingConfig().height_range,
+            ),
+            (
+                "mass_errors",
+                self.mass_errors,
+                "claim_mass_error",
+                self.claim_mass_error,
+                PushingConfig().mass_range,
+            ),
+        ):
+            # At most half the range, so that the true parameters of every error (drawn where the
+            # estimate stays in the range) still cover half of it.
+            bound = (high - low) / 2
+            for e in errors:
+                check_range(name, e, -bound, bound)
+            check_range(claim_name, claim, 1e-9, bound)
+            needed = (0.0, -claim, claim)
+            if not set(needed) <= set(errors):
+                raise ValueError(
+                    f"{name} must contain {needed} (the claim compares success at the true parameter with "
+                    f"success at +-{claim_name}), got {tuple(errors)!r}"
+                )
 
 
 @dataclass(frozen=True)
@@ -68,7 +100,7 @@ class AblationCell:
 
 @dataclass(frozen=True)
 class CurveCell:
-    """One episode of one task executed with the true parameter plus `error`."""
+    """One episode of one task executed with an estimate `error` off the true parameter."""
 
     domain: str
     error: float
@@ -112,23 +144,30 @@ def run_ablation_cell(cell: AblationCell) -> pd.DataFrame:
     )
 
 
+def _truth_and_estimate(
+    rng: np.random.Generator, error: float, low: float, high: float
+) -> tuple[float, float]:
+    """A true parameter uniform over the part of [low, high] where truth + error stays inside, and that
+    estimate. Clipping the estimate instead would make the real error smaller than the one plotted."""
+    truth = rng.uniform(max(low, low - error), min(high, high - error))
+    # min/max only undo rounding: truth + error lies in [low, high] by the choice of the truth's range.
+    return truth, min(max(truth + error, low), high)
+
+
 def run_curve_cell(cell: CurveCell) -> pd.DataFrame:
-    """One episode with a parameter drawn from its range and the estimate off by `cell.error`."""
+    """One episode whose estimate is off the true parameter by exactly `cell.error` (see
+    `_truth_and_estimate`: the truth is drawn only where that estimate is inside the range)."""
     rng = np.random.default_rng(cell.seed)
     if cell.domain == "wiping":
         wiping = WipingTask()
-        low, high = wiping.config.height_range
-        height = rng.uniform(low, high)
-        estimate = float(np.clip(height + cell.error, low, high))
+        height, estimate = _truth_and_estimate(rng, cell.error, *wiping.config.height_range)
         cfg = wiping.config
         start, goal = rng.uniform([cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], (2, 2))
         wiping.reset(height, tuple(start))
         success = wiping.stroke(goal, estimate).success
     else:
         pushing = PushingTask()
-        low, high = pushing.config.mass_range
-        mass = rng.uniform(low, high)
-        estimate = float(np.clip(mass + cell.error, low, high))
+        mass, estimate = _truth_and_estimate(rng, cell.error, *pushing.config.mass_range)
         start, goal = pushing.sample_layout(rng)
         pushing.reset(mass, start, goal)
         success = pushing.push(estimate).success

@@ -51,9 +51,9 @@ START: Cell = (0, 0)
 class R1Config:
     """Parameters of notebook 01 (defaults: the quick profile; the paper's values in params/full)."""
 
-    episodes: int = 12
+    episodes: int = 15
     """Learning episodes per run (A.7: 50)."""
-    max_steps: int = 150
+    max_steps: int = 120
     """High-level steps per episode at most (A.7: 290); the flat policy gets the same simulated time."""
     seeds: int = 2
     """Independent runs per method (paper: not given; full profile 15)."""
