@@ -7,12 +7,16 @@ import numpy as np
 import pytest
 
 from hipref.learners.noise_estimation import (
+    CONFLICTS,
     PreferenceSet,
     conflict_counts,
     estimate_noise,
     random_preferences,
 )
-from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT
+from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT, CandidateSet
+
+PAPER_EXAMPLE_GRID = CandidateSet(low=0.5, high=0.9, resolution=0.1)
+"""A.9's example compares 0.5 m with 0.6 m: 5 heights 0.1 m apart, so random pairs often repeat."""
 
 
 def _conflict(first: tuple[float, float, int], second: tuple[float, float, int]) -> bool:
@@ -41,6 +45,69 @@ def test_hand_built_dataset_gives_the_fraction_computed_by_hand() -> None:
     data = PreferenceSet(*map(np.array, zip(*preferences, strict=True)))
     np.testing.assert_array_equal(conflict_counts(data), [4, 1, 2, 2, 2, 1])
     assert estimate_noise(data) == pytest.approx(4 / 6)
+    # Same pair, opposite answers: only 0-1. C = [1, 1, 0, 0, 0, 0], mean 1/3, two entries >= 1/3.
+    np.testing.assert_array_equal(conflict_counts(data, "same_pair"), [1, 1, 0, 0, 0, 0])
+    assert estimate_noise(data, "same_pair") == pytest.approx(2 / 6)
+
+
+def _pair(*preferences: tuple[float, float, int]) -> PreferenceSet:
+    return PreferenceSet(*map(np.array, zip(*preferences, strict=True)))
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "same_pair", "no_common_parameter"),
+    [
+        # The paper's example: 0.5 better than 0.6, and vice versa (shown either way round).
+        ((0.5, 0.6, 1), (0.5, 0.6, -1), True, True),
+        ((0.5, 0.6, 1), (0.6, 0.5, 1), True, True),
+        # The same answer shown the other way round is no conflict.
+        ((0.5, 0.6, 1), (0.6, 0.5, -1), False, False),
+        # h < 0.55 and h > 0.56: no height satisfies both, but they are different pairs.
+        ((0.5, 0.6, 1), (0.6, 0.52, 1), False, True),
+        # h < 0.55 and h > 0.55 from different pairs with the same midpoint.
+        ((0.5, 0.6, 1), (0.4, 0.7, -1), False, True),
+        # h < 0.55 and h > 0.535: 0.54 satisfies both.
+        ((0.5, 0.6, 1), (0.55, 0.52, 1), False, False),
+    ],
+)
+def test_each_reading_of_a_conflict_has_its_defining_property(
+    a: tuple[float, float, int], b: tuple[float, float, int], same_pair: bool, no_common_parameter: bool
+) -> None:
+    data = _pair(a, b)
+    for conflict, expected in (("same_pair", same_pair), ("no_common_parameter", no_common_parameter)):
+        np.testing.assert_array_equal(conflict_counts(data, conflict), [int(expected)] * 2, err_msg=conflict)
+
+
+def test_same_pair_counts_match_the_double_loop_and_never_exceed_the_other_reading() -> None:
+    data = random_preferences(60, 0.3, PAPER_EXAMPLE_GRID, np.random.default_rng(5))
+    rows = list(zip(data.first, data.second, data.label.astype(int), strict=True))
+    expected = np.zeros(len(rows), dtype=int)
+    for i, j in itertools.combinations(range(len(rows)), 2):
+        (a, b, y), (c, d, z) = rows[i], rows[j]
+        if {a, b} == {c, d} and (a if y == 1 else b) != (c if z == 1 else d):
+            expected[i] += 1
+            expected[j] += 1
+    same_pair = conflict_counts(data, "same_pair")
+    np.testing.assert_array_equal(same_pair, expected)
+    assert expected.sum() > 0
+    assert np.all(same_pair <= conflict_counts(data, "no_common_parameter"))
+
+
+def test_values_equal_but_for_rounding_are_the_same_pair() -> None:
+    data = _pair((0.1 + 0.2, 0.6, 1), (0.6, 0.3, 1))
+    assert 0.1 + 0.2 != 0.3
+    np.testing.assert_array_equal(conflict_counts(data, "same_pair"), [1, 1])
+
+
+def test_the_default_reading_is_no_common_parameter_and_others_are_refused() -> None:
+    data = random_preferences(128, 0.2, DESK_HEIGHT, np.random.default_rng(6))
+    assert CONFLICTS == ("same_pair", "no_common_parameter")
+    np.testing.assert_array_equal(conflict_counts(data), conflict_counts(data, "no_common_parameter"))
+    assert estimate_noise(data) == estimate_noise(data, "no_common_parameter")
+    assert estimate_noise(data) != estimate_noise(data, "same_pair")
+    for call in (conflict_counts, estimate_noise):
+        with pytest.raises(ValueError, match=r"conflict must be one of .*no_common_parameter.*'opposite'"):
+            call(data, "opposite")
 
 
 def test_conflict_counts_match_the_pairwise_double_loop_of_the_pseudo_code() -> None:

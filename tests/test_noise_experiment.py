@@ -8,14 +8,18 @@ import pytest
 
 from hipref.experiments import noise_estimation
 from hipref.experiments.noise_estimation import (
+    METHODS,
     PAPER_TABLE3,
     TABLE3_COLUMNS,
     NoiseEstimationConfig,
+    dataset_rng,
     error_trend,
     overestimate,
+    paper_distance,
     run,
     table3,
 )
+from hipref.learners.noise_estimation import CONFLICTS, estimate_noise, random_preferences
 from hipref.results import TIDY_COLUMNS, check_tidy
 from tests._clips import shown
 
@@ -26,35 +30,73 @@ def test_table3_is_identical_for_the_same_seed_and_differs_for_another() -> None
     first, second = table3(SMALL), table3(SMALL)
     pd.testing.assert_frame_equal(first, second, check_exact=True)
     other = table3(dataclasses.replace(SMALL, seed=4))
-    assert not np.array_equal(first["estimated_noise"], other["estimated_noise"])
+    column = "estimated_noise_same_pair"
+    assert not np.array_equal(first[column], other[column])
 
 
 def test_a_levels_datasets_do_not_depend_on_the_other_levels() -> None:
-    alone = table3(dataclasses.replace(SMALL, noise_levels=(0.25,)))
-    together = table3(SMALL)
-    assert alone["estimated_noise"].iloc[0] == together.set_index("true_noise").loc[0.25, "estimated_noise"]
+    alone = table3(dataclasses.replace(SMALL, noise_levels=(0.25,))).set_index("true_noise")
+    together = table3(SMALL).set_index("true_noise")
+    for conflict in CONFLICTS:
+        column = f"estimated_noise_{conflict}"
+        assert alone.loc[0.25, column] == together.loc[0.25, column]
 
 
-def test_table3_has_the_contract_columns_and_the_papers_values() -> None:
+def test_table3_has_one_column_per_reading_beside_the_papers() -> None:
     table = table3(SMALL)
     assert tuple(table.columns) == TABLE3_COLUMNS
+    assert {
+        "paper_estimated_noise",
+        "estimated_noise_same_pair",
+        "estimated_noise_no_common_parameter",
+    } <= set(table.columns)
     assert table["true_noise"].tolist() == [0.1, 0.25, 0.4]
     assert table["paper_estimated_noise"].tolist() == [
         PAPER_TABLE3[0.1],
         PAPER_TABLE3[0.25],
         PAPER_TABLE3[0.4],
     ]
-    assert table["estimated_noise"].between(0.0, 1.0).all()
+    for conflict in CONFLICTS:
+        assert table[f"estimated_noise_{conflict}"].between(0.0, 1.0).all()
+        assert (table[f"estimated_noise_{conflict}_std"] > 0).all()
+    assert not np.array_equal(
+        table["estimated_noise_same_pair"], table["estimated_noise_no_common_parameter"]
+    )
 
 
-def test_rows_are_tidy_with_one_estimate_and_one_true_noise_per_dataset() -> None:
+def test_rows_are_tidy_with_one_estimate_and_one_true_noise_per_dataset_and_reading() -> None:
     rows = check_tidy(run(SMALL))
     assert set(TIDY_COLUMNS) <= set(rows.columns)
-    assert set(rows["method"]) == {"algorithm5"} and set(rows["episode"]) == {0}
-    counts = rows.groupby(["noise", "metric"]).size()
-    assert (counts == SMALL.repetitions).all() and len(counts) == 2 * len(SMALL.noise_levels)
+    assert set(rows["method"]) == set(METHODS.values()) and set(rows["episode"]) == {0}
+    counts = rows.groupby(["noise", "method", "metric"]).size()
+    assert (counts == SMALL.repetitions).all() and len(counts) == 2 * len(CONFLICTS) * len(SMALL.noise_levels)
     truth = rows[rows["metric"] == "true_noise"]
     assert (truth["value"] == truth["noise"]).all()
+    assert set(rows["n_candidates"]) == {5}
+
+
+def test_both_readings_estimate_the_same_datasets() -> None:
+    rows = run(SMALL).set_index(["noise", "seed", "method", "metric"])["value"]
+    for true_noise, repetition in ((0.1, 0), (0.4, 4)):
+        rng = dataset_rng(SMALL.seed, true_noise, repetition)
+        data = random_preferences(SMALL.n_preferences, true_noise, SMALL.candidates, rng)
+        for conflict, method in METHODS.items():
+            assert rows[(true_noise, repetition, method, "estimated_noise")] == estimate_noise(data, conflict)
+
+
+def test_the_candidates_are_the_papers_example_unless_told_otherwise() -> None:
+    assert SMALL.candidates.values.tolist() == pytest.approx([0.5, 0.6, 0.7, 0.8, 0.9])
+    assert NoiseEstimationConfig(candidate_spacing=None).candidates.size == 41
+    assert NoiseEstimationConfig(domain="pushing", candidate_spacing=None).candidates.size == 49
+    assert NoiseEstimationConfig(domain="pushing", candidate_spacing=3.0).candidates.size == 5
+    fine = run(dataclasses.replace(SMALL, candidate_spacing=None))
+    assert set(fine["n_candidates"]) == {41}
+
+
+def test_at_the_papers_scale_the_same_pair_reading_is_nearer_table3() -> None:
+    # Table 3's setting (100 datasets of 256 preferences per level) on the example's 5 candidates.
+    distance = paper_distance(table3(NoiseEstimationConfig()))
+    assert distance["same_pair"] < 0.02 < distance["no_common_parameter"]
 
 
 @pytest.mark.parametrize(
@@ -64,6 +106,8 @@ def test_rows_are_tidy_with_one_estimate_and_one_true_noise_per_dataset() -> Non
         ("repetitions", 0),
         ("noise_levels", (0.1, 1.5)),
         ("domain", "kitchen"),
+        ("candidate_spacing", 0.15),
+        ("candidate_spacing", -0.1),
         ("seed", -1),
     ],
 )
@@ -94,6 +138,24 @@ def test_claim_statistics_see_a_constant_bias_and_a_falling_error() -> None:
     assert mean == pytest.approx(0.1) and low == pytest.approx(0.1) and high == pytest.approx(0.1)
     slope, _, high_slope = error_trend(rows, relative=True)
     assert slope < 0 and high_slope < 0
+    # The absolute error is 0.1 at every level: no trend, and an interval of exactly zero width.
+    assert error_trend(rows, relative=False) == (0.0, 0.0, 0.0)
+
+
+def test_claim_statistics_take_one_reading_at_a_time() -> None:
+    rows = run(SMALL)
+    with pytest.raises(ValueError, match="several readings"):
+        overestimate(rows)
+    with pytest.raises(ValueError, match="several readings"):
+        error_trend(rows)
+    for conflict, method in METHODS.items():
+        alone = rows[rows["method"] == method]
+        assert overestimate(rows, method=method) == overestimate(alone)
+        bias = alone.pivot_table(index=["noise", "seed"], columns="metric", values="value")
+        expected = (bias["estimated_noise"] - bias["true_noise"]).mean()
+        assert overestimate(rows, method=method)[0] == pytest.approx(expected), conflict
+    with pytest.raises(ValueError, match="method"):
+        overestimate(rows, method="algorithm5")
 
 
 def test_co_pesi_estimated_sets_its_noise_level_from_algorithm_5_on_its_buffer() -> None:

@@ -112,3 +112,44 @@ def test_teacher_arguments_are_validated() -> None:
         ScriptedPreferenceTeacher(0.7, 0.1, None)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="true_parameter"):
         ScriptedPreferenceTeacher(math.nan, 0.1, np.random.default_rng())
+
+
+def _closest(candidates: tuple[float, ...], truth: float) -> int:
+    return int(np.argmin(np.abs(np.asarray(candidates) - truth)))
+
+
+@pytest.mark.parametrize(("noise", "n_candidates"), [(0.2, 2), (0.35, 4)])
+def test_the_recorded_flips_are_the_answers_that_disagree_with_the_truth(
+    noise: float, n_candidates: int
+) -> None:
+    rng = np.random.default_rng(8)
+    # Random candidates: ties have probability zero, so the closest candidate is the noise-free answer.
+    queries = [PreferenceQuery(tuple(rng.uniform(0.5, 0.9, n_candidates)), FEATURES) for _ in range(5000)]
+    teacher = ScriptedPreferenceTeacher(0.66, noise, np.random.default_rng(9))
+    answers = [teacher.answer(q) for q in queries]
+    assert len(teacher.flipped) == len(queries) and all(type(f) is bool for f in teacher.flipped)
+    for query, answer, flipped in zip(queries, answers, teacher.flipped, strict=True):
+        chosen = preferred_index(preference_label_vector(answer, n_candidates))
+        assert flipped == (chosen != _closest(query.candidates, 0.66))
+    n = len(queries)
+    assert abs(sum(teacher.flipped) - n * noise) < 4 * math.sqrt(n * noise * (1 - noise))
+
+
+def test_recording_the_flips_draws_nothing_more() -> None:
+    # The draws of the paper's teacher: one uniform per answer when noise > 0, and for a flip one integer
+    # choosing among the other candidates. Same rng seed, same answers and the same generator state after.
+    queries = [PreferenceQuery(tuple(0.5 + 0.1 * np.arange(3)), FEATURES)] * 200
+    teacher = ScriptedPreferenceTeacher(0.58, 0.4, np.random.default_rng(10))
+    reference = np.random.default_rng(10)
+    for query in queries:
+        expected = _closest(query.candidates, 0.58)
+        if reference.random() < 0.4:
+            others = [i for i in range(3) if i != expected]
+            expected = others[reference.integers(2)]
+        assert preferred_index(teacher.answer(query)) == expected
+    assert teacher.rng.bit_generator.state == reference.bit_generator.state
+    clean = ScriptedPreferenceTeacher(0.58, 0.0, np.random.default_rng(11))
+    for query in queries[:20]:
+        clean.answer(query)
+    assert clean.flipped == [False] * 20
+    assert clean.rng.bit_generator.state == np.random.default_rng(11).bit_generator.state

@@ -3,10 +3,15 @@
 For every true noise level, `repetitions` datasets of `n_preferences` random pairwise preferences are
 drawn (`random_preferences`: a true parameter uniform over the candidate range, random pairs of distinct
 candidates, each label flipped with probability equal to the true noise) and Algorithm 5 estimates the
-fraction of flipped labels. Table 3 is the mean estimate per true noise level.
+fraction of flipped labels under each reading of a conflict (`hipref.learners.noise_estimation.CONFLICTS`),
+on the same datasets. Table 3 is the mean estimate per true noise level, one column per reading.
 
-Each dataset takes a fraction of a millisecond, so the whole table (7 x 100 datasets) runs in this process
-in well under a second; a parallel sweep would cost more in process start-up than it saves.
+The candidates are those of A.9's only example ("0.5m ... than 0.6m"), 0.1 m apart on [0.5, 0.9] m, unless
+`candidate_spacing` says otherwise: how often two preferences compare the same pair, hence how many
+conflicts the same-pair reading finds, depends on how many candidates there are.
+
+Each dataset takes a fraction of a millisecond, so the whole table (7 x 100 datasets, two readings) runs
+in this process in about a second; a parallel sweep would cost more in process start-up than it saves.
 """
 
 from __future__ import annotations
@@ -16,9 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from hipref.learners.noise_estimation import estimate_noise, random_preferences
+from hipref.learners.noise_estimation import CONFLICTS, estimate_noise, random_preferences
 from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT, CandidateSet
 from hipref.validation import check_choice, check_int, check_range
+from hipref.verdicts import bootstrap_mean, trend
 
 PAPER_TABLE3: dict[float, float] = {
     0.1: 0.19,
@@ -35,10 +41,22 @@ PAPER_OVERESTIMATE = 0.06
 """A.9: 'the algorithm often tends to overestimate the noise by about 6%' (absolute, in noise fraction)."""
 
 CANDIDATES: dict[str, CandidateSet] = {"wiping": DESK_HEIGHT, "pushing": CUBE_MASS}
-"""The candidate set each domain's preferences compare (A.9's example is desk height)."""
+"""Each domain's candidate grid, the one the learners see (A.9's example is desk height)."""
 
-TABLE3_COLUMNS = ("true_noise", "estimated_noise", "estimated_noise_std", "paper_estimated_noise")
-"""Columns of `table3`; `estimated_noise_std` is the standard deviation over repetitions."""
+PAPER_EXAMPLE_SPACING = 0.1
+"""A.9's example compares 0.5 m with 0.6 m: desk heights 0.1 m apart, 5 candidates on [0.5, 0.9] m."""
+
+METHODS: dict[str, str] = {conflict: f"algorithm5_{conflict}" for conflict in CONFLICTS}
+"""The `method` of the rows of each reading of a conflict."""
+
+TABLE3_COLUMNS: tuple[str, ...] = (
+    "true_noise",
+    "paper_estimated_noise",
+    *(f"estimated_noise_{conflict}" for conflict in CONFLICTS),
+    *(f"estimated_noise_{conflict}_std" for conflict in CONFLICTS),
+)
+"""Columns of `table3`: the paper's mean estimate, then this study's under each reading, then the standard
+deviations over the repetitions."""
 
 
 @dataclass(frozen=True)
@@ -52,7 +70,12 @@ class NoiseEstimationConfig:
     noise_levels: tuple[float, ...] = (0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4)
     """True fractions of flipped labels (Table 3: 0.10 to 0.40 in steps of 0.05)."""
     domain: str = "wiping"
-    """Whose candidate set the preferences compare: 'wiping' (desk height, A.9's example) or 'pushing'."""
+    """Whose parameter range the preferences are about: 'wiping' (desk height, A.9's example) or 'pushing'."""
+    candidate_spacing: float | None = PAPER_EXAMPLE_SPACING
+    """Spacing of the candidates over the domain's whole range, in its unit (m or kg); it must divide the
+    range into whole steps. Default: A.9's example, 0.1 m (5 heights on [0.5, 0.9] m; 3.0 kg gives 5 masses
+    on [8, 20] kg). None: the grid the learners see (`CANDIDATES`: 41 heights 0.01 m apart, 49 masses
+    0.25 kg apart)."""
     seed: int = 0
     """Root seed; each dataset's generator derives from it, the noise level and the repetition."""
 
@@ -66,7 +89,25 @@ class NoiseEstimationConfig:
         for level in self.noise_levels:
             check_range("noise_levels", level, 0.0, 1.0)
         check_choice("domain", self.domain, CANDIDATES)
+        if self.candidate_spacing is not None:
+            grid = CANDIDATES[self.domain]
+            span = grid.high - grid.low
+            spacing = self.candidate_spacing
+            ok = isinstance(spacing, int | float) and not isinstance(spacing, bool) and 0 < spacing <= span
+            if not ok or abs(span / spacing - round(span / spacing)) > 1e-6:
+                raise ValueError(
+                    f"candidate_spacing must be None or a number in (0, {span:g}] dividing the {self.domain} "
+                    f"range [{grid.low:g}, {grid.high:g}] into whole steps, got {spacing!r}"
+                )
         check_int("seed", self.seed, 0)
+
+    @property
+    def candidates(self) -> CandidateSet:
+        """The candidates the random pairs are drawn from."""
+        grid = CANDIDATES[self.domain]
+        if self.candidate_spacing is None:
+            return grid
+        return CandidateSet(low=grid.low, high=grid.high, resolution=float(self.candidate_spacing))
 
 
 def dataset_rng(seed: int, true_noise: float, repetition: int) -> np.random.Generator:
@@ -76,41 +117,48 @@ def dataset_rng(seed: int, true_noise: float, repetition: int) -> np.random.Gene
 
 
 def run(config: NoiseEstimationConfig) -> pd.DataFrame:
-    """Tidy rows: per dataset, `estimated_noise` (Algorithm 5) and `true_noise` (the flip probability).
+    """Tidy rows: per dataset and reading of a conflict, `estimated_noise` (Algorithm 5) and `true_noise`.
 
-    `seed` is the repetition number; with `config.seed` it determines the dataset (`dataset_rng`).
+    Both readings (`METHODS`) estimate from the same datasets. `seed` is the repetition number; with
+    `config.seed` it determines the dataset (`dataset_rng`); `n_candidates` is the size of the grid.
     """
-    candidates = CANDIDATES[config.domain]
+    candidates = config.candidates
     rows = []
     for true_noise in config.noise_levels:
         for repetition in range(config.repetitions):
             rng = dataset_rng(config.seed, true_noise, repetition)
             preferences = random_preferences(config.n_preferences, true_noise, candidates, rng)
-            estimate = estimate_noise(preferences)
-            for metric, value in (("estimated_noise", estimate), ("true_noise", true_noise)):
-                rows.append(
-                    {
-                        "domain": config.domain,
-                        "method": "algorithm5",
-                        "noise": float(true_noise),
-                        "seed": repetition,
-                        "episode": 0,
-                        "metric": metric,
-                        "value": float(value),
-                    }
-                )
+            for conflict, method in METHODS.items():
+                estimate = estimate_noise(preferences, conflict)
+                for metric, value in (("estimated_noise", estimate), ("true_noise", true_noise)):
+                    rows.append(
+                        {
+                            "domain": config.domain,
+                            "method": method,
+                            "noise": float(true_noise),
+                            "seed": repetition,
+                            "episode": 0,
+                            "metric": metric,
+                            "value": float(value),
+                            "n_candidates": candidates.size,
+                        }
+                    )
     return pd.DataFrame(rows)
 
 
 def summarise(rows: pd.DataFrame) -> pd.DataFrame:
-    """Table 3 from tidy rows: mean and standard deviation of the estimate per true noise level."""
-    estimates = rows[rows["metric"] == "estimated_noise"].groupby("noise")["value"]
-    table = pd.DataFrame(
-        {"estimated_noise": estimates.mean(), "estimated_noise_std": estimates.std(ddof=1)}
-    ).reset_index(names="true_noise")
+    """Table 3 from tidy rows: per true noise level, the mean and standard deviation of each reading's
+    estimate (NaN for a reading the rows lack), beside the paper's mean estimate."""
+    estimates = rows[rows["metric"] == "estimated_noise"].groupby(["noise", "method"])["value"]
+    stats = pd.DataFrame({"mean": estimates.mean(), "std": estimates.std(ddof=1)}).unstack("method")
+    table = pd.DataFrame({"true_noise": stats.index.to_numpy(dtype=float)})
     table["paper_estimated_noise"] = [
         next((v for k, v in PAPER_TABLE3.items() if np.isclose(k, t)), np.nan) for t in table["true_noise"]
     ]
+    for conflict, method in METHODS.items():
+        for stat, suffix in (("mean", ""), ("std", "_std")):
+            column = stats[stat].get(method, np.nan)
+            table[f"estimated_noise_{conflict}{suffix}"] = np.asarray(column, dtype=float)
     return table[list(TABLE3_COLUMNS)]
 
 
@@ -119,36 +167,75 @@ def table3(config: NoiseEstimationConfig) -> pd.DataFrame:
     return summarise(run(config))
 
 
-def overestimate(rows: pd.DataFrame, *, resamples: int = 2000, seed: int = 0) -> tuple[float, float, float]:
+def paper_distance(table: pd.DataFrame) -> dict[str, float]:
+    """Per reading of a conflict, the mean over the paper's noise levels of |study - paper| in Table 3."""
+    listed = table[table["paper_estimated_noise"].notna()]
+    if listed.empty:
+        raise ValueError(f"table holds none of the paper's noise levels {sorted(PAPER_TABLE3)}")
+    paper = listed["paper_estimated_noise"].to_numpy()
+    return {
+        conflict: float(np.mean(np.abs(listed[f"estimated_noise_{conflict}"].to_numpy() - paper)))
+        for conflict in CONFLICTS
+    }
+
+
+def overestimate(
+    rows: pd.DataFrame, *, method: str | None = None, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float, float]:
     """Mean of (estimate - true noise) over all datasets and levels, with a 95% bootstrap interval over
-    datasets resampled within each level (so every level keeps its weight)."""
-    bias = _per_dataset(rows, relative=False)
-    rng = np.random.default_rng(seed)
-    groups = [g.to_numpy() for _, g in bias.groupby(level="noise")]
-    boot = np.mean([rng.choice(g, size=(resamples, len(g))).mean(axis=1) for g in groups], axis=0)
-    mean = float(np.mean([g.mean() for g in groups]))
-    low, high = np.quantile(boot, [0.025, 0.975])
-    return mean, float(low), float(high)
+    datasets resampled within each level, so every level keeps its weight (`hipref.verdicts.bootstrap_mean`).
+
+    `method`: the reading whose estimates are used (a value of `METHODS`); None if the rows hold one only.
+    """
+    bias = _per_dataset(_one_method(rows, method), relative=False)
+    result = bootstrap_mean(
+        bias.to_numpy(),
+        strata=bias.index.get_level_values("noise").to_numpy(),
+        resamples=resamples,
+        seed=seed,
+    )
+    return result.mean, result.low, result.high
 
 
-def error_trend(rows: pd.DataFrame, *, relative: bool = True) -> tuple[float, float, float]:
-    """Least-squares slope of the per-dataset error on the true noise, with its 95% interval
-    (normal approximation). `relative`: (estimate - true) / true; otherwise the absolute error
-    |estimate - true|. A negative slope means the estimate gets better as the true noise grows."""
-    error = _per_dataset(rows, relative=relative)
+def error_trend(
+    rows: pd.DataFrame,
+    *,
+    relative: bool = True,
+    method: str | None = None,
+    resamples: int = 2000,
+    seed: int = 0,
+) -> tuple[float, float, float]:
+    """Least-squares slope of the per-dataset error on the true noise, with its 95% bootstrap interval
+    (`hipref.verdicts.trend`: datasets resampled within each level). `relative`: (estimate - true) / true;
+    otherwise the absolute error |estimate - true|. A negative slope means the estimate gets better as the
+    true noise grows. `method` as in `overestimate`."""
+    error = _per_dataset(_one_method(rows, method), relative=relative)
     if not relative:
         error = error.abs()
-    x = error.index.get_level_values("noise").to_numpy(dtype=float)
-    y = error.to_numpy(dtype=float)
-    if np.unique(x).size < 2:
-        raise ValueError("error_trend needs at least two noise levels")
-    design = np.column_stack([np.ones_like(x), x])
-    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-    residual = y - design @ coef
-    sigma2 = residual @ residual / max(len(y) - 2, 1)
-    se = float(np.sqrt(sigma2 * np.linalg.inv(design.T @ design)[1, 1]))
-    slope = float(coef[1])
-    return slope, slope - 1.96 * se, slope + 1.96 * se
+    frame = error.rename("error").reset_index()
+    result = trend(
+        frame,
+        x="noise",
+        y="error",
+        units=("noise", "seed"),
+        strata=("noise",),
+        resamples=resamples,
+        seed=seed,
+    )
+    return result.slope, result.low, result.high
+
+
+def _one_method(rows: pd.DataFrame, method: str | None) -> pd.DataFrame:
+    """The rows of one reading; refuses to mix readings, whose estimates differ on the same datasets."""
+    present = sorted(rows["method"].unique()) if "method" in rows.columns else []
+    if method is None:
+        if len(present) > 1:
+            raise ValueError(
+                f"rows hold several readings {present}; choose one with method=, one of {present}"
+            )
+        return rows
+    check_choice("method", method, present)
+    return rows[rows["method"] == method]
 
 
 def _per_dataset(rows: pd.DataFrame, *, relative: bool) -> pd.Series:

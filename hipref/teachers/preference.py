@@ -84,6 +84,10 @@ class ScriptedPreferenceTeacher:
     Ties (two candidates equally close, up to floating-point rounding) are broken uniformly at random with
     the teacher's rng rather than by position: a positional rule would make every tie favour candidates[0]
     and bias a learner whose queries put, say, the lower value first.
+
+    `flipped[i]` records whether the i-th answer was flipped: ground truth that only a scripted teacher
+    knows, kept to score a noise filter against (`CoPESILearner.filter_precision_recall`) and never shown
+    to the learner, which is told the label alone.
     """
 
     def __init__(self, true_parameter: float, noise: float, rng: np.random.Generator) -> None:
@@ -101,6 +105,7 @@ class ScriptedPreferenceTeacher:
         self.true_parameter = float(true_parameter)
         self.noise = float(noise)
         self.rng = rng
+        self.flipped: list[bool] = []
 
     def closest(self, candidates: tuple[float, ...]) -> int:
         """Index of the candidate nearest the true parameter, ties broken uniformly with the rng."""
@@ -109,13 +114,17 @@ class ScriptedPreferenceTeacher:
         return int(nearest[0]) if nearest.size == 1 else int(self.rng.choice(nearest))
 
     def answer(self, query: PreferenceQuery) -> int | np.ndarray:
-        """y in {-1, 1} for two candidates (Eq. 2), else the Eq. 3 label vector."""
+        """y in {-1, 1} for two candidates (Eq. 2), else the Eq. 3 label vector; `flipped` records whether
+        this answer was flipped."""
         n = len(query.candidates)
         preferred = self.closest(query.candidates)
-        if self.noise > 0 and self.rng.random() < self.noise:
+        # No draw at zero noise, so a noise-free teacher's rng serves tie-breaking alone.
+        flip = self.noise > 0 and self.rng.random() < self.noise
+        if flip:
             # Uniform flip: any of the other candidates, each equally likely.
             others = [i for i in range(n) if i != preferred]
             preferred = int(others[self.rng.integers(len(others))])
+        self.flipped.append(bool(flip))
         if n == 2:
             return 1 if preferred == 0 else -1
         label = np.full(n, -1.0 / (n - 1))
