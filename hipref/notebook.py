@@ -43,11 +43,17 @@ _IPYTHON = frozenset({"In", "Out", "exit", "quit", "get_ipython", "open"})
 
 
 def user_names(namespace: Mapping[str, Any]) -> dict[str, Any]:
-    """The names of `namespace` that hold plain data and are not private or IPython's own."""
+    """The names of `namespace` that hold plain data and are not private, constants or IPython's own.
+
+    Parameters are lower-case (the config fields they set); an upper-case name is a constant a cell
+    imported, such as `DOMAINS` or `PAPER_TABLE3`, never a parameter."""
     return {
         name: value
         for name, value in namespace.items()
-        if not name.startswith("_") and name not in _IPYTHON and type(value) in PLAIN_DATA
+        if not name.startswith("_")
+        and not name.isupper()
+        and name not in _IPYTHON
+        and type(value) in PLAIN_DATA
     }
 
 

@@ -1,13 +1,29 @@
-"""CO-PESI (Algorithm 1): small-loss selection, cross-updates, refreshes and the SI update on b_0."""
+"""CO-PESI (Algorithm 1): small-loss selection, cross-updates, the refresh schedule, one SI update per
+preference on b_0, and the filter's precision and recall against the recorded flips."""
+
+import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
 import torch
 
-from hipref.learners.coteaching import CoPESIConfig, CoPESILearner, CoTeachingPair, coteach_select
+from hipref.learners.coteaching import (
+    CoPESIConfig,
+    CoPESILearner,
+    CoTeachingPair,
+    EstimatedNoiseCoPESILearner,
+    SIUpdateRecord,
+    classifier_inputs,
+    coteach_select,
+    legacy_schedule,
+)
+from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
-from hipref.teachers.preference import ScriptedPreferenceTeacher
+from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
 from tests._clips import shown
+
+TRUE_HEIGHT = 0.7537
 
 
 @pytest.fixture(autouse=True)
@@ -16,19 +32,19 @@ def _single_thread(single_thread: None) -> None:
 
 
 def _noisy_pairs(n: int, noise: float, seed: int) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
-    """Random candidate pairs labelled by nearness to a fixed height; a known subset of labels flipped."""
+    """Random candidate pairs labelled by nearness to a fixed height; a known subset of labels flipped.
+
+    Returns the classifiers' inputs, the targets (class 0 for y = 1) and the flipped flags."""
     rng = np.random.default_rng(seed)
     first = rng.integers(DESK_HEIGHT.size, size=n)
     second = rng.integers(DESK_HEIGHT.size - 1, size=n)
     second += second >= first
     a, b = DESK_HEIGHT.values[first], DESK_HEIGHT.values[second]
-    true_height = 0.7537
-    y = np.where(np.abs(a - true_height) < np.abs(b - true_height), 1, -1)
+    y = np.where(np.abs(a - TRUE_HEIGHT) < np.abs(b - TRUE_HEIGHT), 1, -1)
     flipped = rng.random(n) < noise
     y[flipped] *= -1
-    pairs = torch.as_tensor(
-        np.stack([DESK_HEIGHT.normalise(a), DESK_HEIGHT.normalise(b)], axis=1), dtype=torch.float32
-    )
+    normalised = np.stack([DESK_HEIGHT.normalise(a), DESK_HEIGHT.normalise(b)], axis=1)
+    pairs = classifier_inputs(torch.as_tensor(normalised, dtype=torch.float32))
     return pairs, torch.as_tensor(y < 0).long(), flipped
 
 
@@ -67,25 +83,53 @@ def test_each_classifier_is_updated_with_its_peers_selection(monkeypatch: pytest
     torch.testing.assert_close(trained_on[1][1], pairs[b0])  # M_1 learns from M_0's selection
 
 
-def test_selection_precision_beats_the_clean_fraction_of_the_batch() -> None:
-    pairs, targets, flipped = _noisy_pairs(512, 0.2, seed=1)
+def test_a_trained_pair_forgets_mostly_flipped_labels() -> None:
+    # One truth, so a clean label is a function of the pair; 20 % of the labels are flipped. After some
+    # hundred co-teaching steps the samples M_0 forgets should be mostly the flipped ones: a filter that
+    # forgets at random would give a precision of about the noise rate, 0.2.
+    pairs, targets, flipped = _noisy_pairs(256, 0.2, seed=1)
     pair = CoTeachingPair((64, 64), 1e-2, seed=1)
     rng = np.random.default_rng(2)
-    for step in range(200):
-        batch = rng.choice(512, size=32, replace=False)
-        pair.step(pairs[batch], targets[batch], forget_number=round(min(1.0, step / 10) * 0.2 * 32))
-    kept_clean, batch_clean = [], []
-    for _ in range(50):
-        batch = rng.choice(512, size=32, replace=False)
-        b0, b1 = coteach_select(*pair.losses(pairs[batch], targets[batch]), forget_number=6)
-        kept_clean.append(np.mean(~flipped[batch[np.concatenate([b0, b1])]]))
-        batch_clean.append(np.mean(~flipped[batch]))
-    assert np.mean(kept_clean) > np.mean(batch_clean) + 0.05
+    for step in range(800):
+        batch = rng.choice(256, size=16, replace=False)
+        pair.step(pairs[batch], targets[batch], forget_number=round(min(1.0, step / 10) * 0.2 * 16))
+    forgotten_flipped = []
+    for _ in range(100):
+        batch = rng.choice(256, size=16, replace=False)
+        b0, _ = coteach_select(*pair.losses(pairs[batch], targets[batch]), forget_number=3)
+        forgotten_flipped.extend(flipped[np.setdiff1d(batch, batch[b0])])
+    assert np.mean(forgotten_flipped) > 0.6
+
+
+def test_the_default_schedules_filter_forgets_flipped_labels_well_above_chance() -> None:
+    # Through the learner, on 99 preferences at 20 % noise with uniformly drawn pairs: a filter that
+    # forgets at random has a precision of about 0.2; one step per preference with the refresh every 16
+    # (the legacy schedule) scored close to that when the queries are concentrated.
+    precisions = []
+    for seed in range(2):
+        rng = np.random.default_rng(seed)
+        model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
+        learner = CoPESILearner(model, 0.2, CoPESIConfig(history=1), seed=seed)
+        flipped = []
+        for _ in range(99):
+            a, b = (float(c) for c in rng.choice(DESK_HEIGHT.values, size=2, replace=False))
+            y = 1 if abs(a - TRUE_HEIGHT) < abs(b - TRUE_HEIGHT) else -1
+            flipped.append(bool(rng.random() < 0.2))
+            learner.tell(PreferenceQuery((a, b), features=rng.normal(size=4)), -y if flipped[-1] else y)
+        precisions.append(learner.filter_precision_recall(flipped)[0])
+    assert np.mean(precisions) > 0.35
 
 
 def _learner(noise_level: float = 0.2, seed: int = 0, **config: object) -> CoPESILearner:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(32, 16), seed=seed)
     return CoPESILearner(model, noise_level, CoPESIConfig(**{"history": 1, **config}), seed=seed)
+
+
+def _teach(learner: PESILearner, n: int, noise: float, seed: int = 1) -> None:
+    teacher = ScriptedPreferenceTeacher(TRUE_HEIGHT, noise, np.random.default_rng(seed))
+    for _ in range(n):
+        query = learner.ask(shown(np.zeros(4)))
+        learner.tell(query, teacher.answer(query))
 
 
 def test_forget_number_ramps_to_the_noise_level_and_keeps_at_least_one_sample() -> None:
@@ -97,49 +141,190 @@ def test_forget_number_ramps_to_the_noise_level_and_keeps_at_least_one_sample() 
     assert _learner(noise_level=0.2, ramp_steps=0).forget_number(0, 16) == 3
 
 
-def test_nothing_is_learnt_until_the_buffer_exceeds_the_start_size() -> None:
+def test_before_the_start_size_si_learns_unfiltered_and_the_classifiers_wait() -> None:
     learner = _learner(start_size=8, batch_size=8)
-    teacher = ScriptedPreferenceTeacher(0.8, 0.0, np.random.default_rng(0))
-    features = np.ones(4)
+    before = [p.clone() for p in learner.pair.models[0].parameters()]
+    _teach(learner, 8, noise=0.0)
+    assert learner.coteaching_steps == learner.classifier_steps == 0
+    assert all(torch.equal(a, b) for a, b in zip(before, learner.pair.models[0].parameters(), strict=True))
+    # One SI update per preference, each on PESI's batch min(batch_size, |D|) with nothing forgotten.
+    assert [len(r.batch) for r in learner.si_updates] == list(range(1, 9))
+    assert all(len(r.forgotten) == 0 for r in learner.si_updates)
+    _teach(learner, 1, noise=0.0)
+    assert learner.coteaching_steps == 1 and learner.classifier_steps == learner.config.rounds
+
+
+def test_the_literal_reading_learns_nothing_before_the_start_size() -> None:
+    learner = _learner(start_size=8, batch_size=8, update_before_start=False)
     before = [p.clone() for p in learner.model.parameters()]
-    for _ in range(8):
-        query = learner.ask(shown(features))
-        learner.tell(query, teacher.answer(query))
-    assert learner.coteaching_steps == 0
+    _teach(learner, 8, noise=0.0)
+    assert learner.si_updates == []
     assert all(torch.equal(a, b) for a, b in zip(before, learner.model.parameters(), strict=True))
-    query = learner.ask(shown(features))
-    learner.tell(query, teacher.answer(query))
-    assert learner.coteaching_steps == 1
+    _teach(learner, 1, noise=0.0)
+    assert len(learner.si_updates) == 1
     assert not all(torch.equal(a, b) for a, b in zip(before, learner.model.parameters(), strict=True))
 
 
-def test_si_is_updated_on_b0_and_classifiers_refresh_on_schedule(monkeypatch: pytest.MonkeyPatch) -> None:
-    learner = _learner(noise_level=0.25, start_size=4, batch_size=8, refresh_frequency=3, ramp_steps=0)
-    si_batches: list[np.ndarray] = []
-    refreshes: list[int] = []
-    update_si, reinitialise = learner._update_si, learner.pair.reinitialise
-    monkeypatch.setattr(learner, "_update_si", lambda batch: si_batches.append(batch) or update_si(batch))
+def test_the_classifiers_refresh_when_the_buffer_reaches_a_multiple_of_f_refresh(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    learner = _learner(start_size=4, batch_size=8, refresh_frequency=3, rounds=2)
+    sizes_at_refresh: list[int] = []
+    reinitialise = learner.pair.reinitialise
+
+    def spy(seed: int) -> None:
+        sizes_at_refresh.append(len(learner))
+        reinitialise(seed)
+
+    monkeypatch.setattr(learner.pair, "reinitialise", spy)
+    _teach(learner, 14, noise=0.25)
+    # Co-teaching runs from |D| = 5; the classifiers are fresh then, and are re-initialised before the
+    # co-teaching of |D| = 6, 9 and 12, not at every 3 classifier steps (there are 2 per preference).
+    assert sizes_at_refresh == learner.refreshed_at == [6, 9, 12]
+    assert learner.coteaching_steps == 10 and learner.classifier_steps == 20
+
+
+def test_the_legacy_schedule_refreshes_every_f_refresh_classifier_steps(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
+    config = legacy_schedule(history=1, start_size=4, batch_size=8, refresh_frequency=3)
+    learner = CoPESILearner(model, 0.25, config, seed=0)
+    refreshed_after_steps: list[int] = []
+    reinitialise = learner.pair.reinitialise
     monkeypatch.setattr(
         learner.pair,
         "reinitialise",
-        lambda seed: refreshes.append(learner.coteaching_steps) or reinitialise(seed),
+        lambda seed: refreshed_after_steps.append(learner.classifier_steps) or reinitialise(seed),
     )
-    teacher = ScriptedPreferenceTeacher(0.6, 0.25, np.random.default_rng(1))
-    for _ in range(14):
+    _teach(learner, 14, noise=0.25)
+    assert learner.config.rounds == 1 and learner.classifier_steps == 10
+    assert refreshed_after_steps == [3, 6, 9]
+    assert len(learner.si_updates) == 10  # no SI update while |D| <= s
+
+
+def test_si_is_updated_once_per_preference_on_the_last_rounds_b0(monkeypatch: pytest.MonkeyPatch) -> None:
+    learner = _learner(noise_level=0.25, start_size=4, batch_size=8, rounds=3, ramp_steps=0)
+    sampled: list[np.ndarray] = []
+    selected: list[np.ndarray] = []
+    si_batches: list[np.ndarray] = []
+    sample_batch, step, update_si = learner._sample_batch, learner.pair.step, learner._update_si
+
+    def spy_sample() -> np.ndarray:
+        sampled.append(sample_batch())
+        return sampled[-1]
+
+    def spy_step(
+        pairs: torch.Tensor, targets: torch.Tensor, forget_number: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        b0, b1 = step(pairs, targets, forget_number)
+        selected.append(sampled[-1][b0])
+        return b0, b1
+
+    monkeypatch.setattr(learner, "_sample_batch", spy_sample)
+    monkeypatch.setattr(learner.pair, "step", spy_step)
+    monkeypatch.setattr(learner, "_update_si", lambda batch: si_batches.append(batch) or update_si(batch))
+    _teach(learner, 10, noise=0.25)
+    assert len(si_batches) == 10 and len(selected) == 3 * 6
+    # The 6 co-teaching preferences: SI sees the b_0 of each one's third classifier step, nothing else.
+    for k, batch in enumerate(si_batches[4:]):
+        np.testing.assert_array_equal(batch, selected[3 * k + 2])
+        record = learner.si_updates[4 + k]
+        assert set(record.forgotten) == set(record.batch) - set(batch)
+        assert len(record.forgotten) == round(0.25 * len(record.batch))
+    np.testing.assert_array_equal(si_batches[-1], learner.last_selection)
+
+
+def test_co_pesi_makes_as_many_si_updates_as_pesi_for_the_same_preferences(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
+    pesi = PESILearner(model, PESIConfig(history=1), seed=0)
+    co_pesi = CoPESILearner(model, 0.2, CoPESIConfig(history=1, rounds=2), seed=0)
+    counts = {"pesi": 0, "co_pesi": 0}
+    for name, learner in (("pesi", pesi), ("co_pesi", co_pesi)):
+        update_si = learner._update_si
+
+        def counted(batch: np.ndarray, name: str = name, update_si: Callable = update_si) -> float:
+            counts[name] += 1
+            return update_si(batch)
+
+        monkeypatch.setattr(learner, "_update_si", counted)
+    teacher = ScriptedPreferenceTeacher(TRUE_HEIGHT, 0.2, np.random.default_rng(0))
+    rng = np.random.default_rng(1)
+    for _ in range(40):
+        candidates = tuple(float(c) for c in rng.choice(DESK_HEIGHT.values, size=2, replace=False))
+        query = PreferenceQuery(candidates, features=rng.normal(size=4))
+        label = teacher.answer(query)
+        pesi.tell(query, label)
+        co_pesi.tell(query, label)
+    assert counts == {"pesi": 40, "co_pesi": 40}
+    assert len(co_pesi.si_updates) == 40 and co_pesi.coteaching_steps == 40 - co_pesi.config.start_size
+
+
+def test_precision_and_recall_count_every_update_entry_occurrence() -> None:
+    learner = _learner()
+    _teach(learner, 5, noise=0.0)
+    flipped = [False, True, False, True, False]
+    # A perfect filter: everything forgotten was flipped, every flipped entry offered was forgotten.
+    learner.si_updates = [
+        SIUpdateRecord(np.array([0, 1, 2]), np.array([1])),
+        SIUpdateRecord(np.array([1, 3, 4]), np.array([1, 3])),
+    ]
+    assert learner.filter_precision_recall(flipped) == (1.0, 1.0)
+    # Entry 1 is offered three times and forgotten twice; entry 2 (clean) forgotten once.
+    learner.si_updates.append(SIUpdateRecord(np.array([1, 2, 4]), np.array([2])))
+    precision, recall = learner.filter_precision_recall(np.array(flipped))
+    assert precision == pytest.approx(3 / 4) and recall == pytest.approx(3 / 4)
+    # Nothing forgotten: precision undefined, recall 0; no flipped entry offered: recall undefined.
+    learner.si_updates = [SIUpdateRecord(np.array([0, 1]), np.array([], dtype=np.int64))]
+    precision, recall = learner.filter_precision_recall(flipped)
+    assert math.isnan(precision) and recall == 0.0
+    learner.si_updates = [SIUpdateRecord(np.array([0, 2]), np.array([2]))]
+    precision, recall = learner.filter_precision_recall(flipped)
+    assert precision == 0.0 and math.isnan(recall)
+
+
+def test_a_learner_that_forgets_nothing_has_undefined_precision_and_zero_recall() -> None:
+    learner = _learner(noise_level=0.0, start_size=4, batch_size=8, rounds=2)
+    teacher = ScriptedPreferenceTeacher(TRUE_HEIGHT, 0.0, np.random.default_rng(0))
+    flipped = []
+    for k in range(20):
         query = learner.ask(shown(np.zeros(4)))
-        learner.tell(query, teacher.answer(query))
-        if si_batches:
-            np.testing.assert_array_equal(si_batches[-1], learner.last_selection)
-    assert learner.coteaching_steps == 10
-    # |D| = 5, 6, 7: batches of 5, 6, 7 forgetting 1, 2, 2; then batches of 8 forgetting round(0.25 * 8).
-    assert [len(batch) for batch in si_batches] == [4, 4, 5] + [6] * 7
-    assert refreshes == [3, 6, 9]
+        label = int(teacher.answer(query))
+        flipped.append(k % 3 == 0)
+        learner.tell(query, -label if flipped[-1] else label)
+    precision, recall = learner.filter_precision_recall(flipped)
+    assert math.isnan(precision) and recall == 0.0
+
+
+def test_precision_and_recall_refuse_flags_that_do_not_match_the_buffer() -> None:
+    learner = _learner()
+    _teach(learner, 5, noise=0.0)
+    for bad in ([False] * 4, [False] * 6, np.zeros((5, 1), dtype=bool)):
+        with pytest.raises(ValueError, match=r"flipped must hold one flag per preference in D \(5\)"):
+            learner.filter_precision_recall(bad)
+    with pytest.raises(ValueError, match="flipped must hold booleans"):
+        learner.filter_precision_recall([0, 1, 2, 0, 0])
+
+
+def test_the_estimated_noise_level_sets_each_preferences_forget_number() -> None:
+    config = CoPESIConfig(batch_size=8, start_size=8, refresh_frequency=8, history=1, rounds=2, ramp_steps=0)
+    learner = EstimatedNoiseCoPESILearner(SIModel(4, DESK_HEIGHT, hidden_sizes=(8,), seed=0), config, seed=1)
+    _teach(learner, 24, noise=0.3)
+    coteaching_updates = learner.si_updates[config.start_size :]
+    assert len(learner.noise_history) == len(coteaching_updates) == 24 - config.start_size
+    for level, record in zip(learner.noise_history, coteaching_updates, strict=True):
+        assert len(record.forgotten) == min(
+            math.floor(level * len(record.batch) + 0.5), len(record.batch) - 1
+        )
+    assert len(set(learner.noise_history)) > 1  # the level does change as D grows
 
 
 def test_noise_free_preferences_reduce_the_estimate_error_and_runs_are_reproducible() -> None:
     estimates = []
     for _ in range(2):
-        learner = _learner(noise_level=0.1, seed=3, learning_rate=0.1)
+        learner = _learner(noise_level=0.1, seed=3, learning_rate=0.1, rounds=2)
         teacher = ScriptedPreferenceTeacher(0.843, 0.0, np.random.default_rng(4))
         features = np.array([0.3, -1.0, 2.0, 0.5])
         initial_error = abs(learner.estimate(features) - 0.843)
@@ -156,5 +341,13 @@ def test_invalid_settings_are_refused() -> None:
         CoPESIConfig(n_candidates=3)
     with pytest.raises(ValueError, match=r"refresh_frequency .*0"):
         CoPESIConfig(refresh_frequency=0)
+    with pytest.raises(ValueError, match=r"refresh_unit .*'episodes'"):
+        CoPESIConfig(refresh_unit="episodes")
+    with pytest.raises(ValueError, match=r"rounds .*0"):
+        CoPESIConfig(rounds=0)
+    with pytest.raises(ValueError, match=r"ramp_origin .*'never'"):
+        CoPESIConfig(ramp_origin="never")
+    with pytest.raises(ValueError, match=r"update_before_start .*1"):
+        CoPESIConfig(update_before_start=1)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"noise_level .*1.5"):
         _learner(noise_level=1.5)

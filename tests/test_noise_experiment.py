@@ -86,10 +86,10 @@ def test_both_readings_estimate_the_same_datasets() -> None:
 
 def test_the_candidates_are_the_papers_example_unless_told_otherwise() -> None:
     assert SMALL.candidates.values.tolist() == pytest.approx([0.5, 0.6, 0.7, 0.8, 0.9])
-    assert NoiseEstimationConfig(candidate_spacing=None).candidates.size == 41
-    assert NoiseEstimationConfig(domain="pushing", candidate_spacing=None).candidates.size == 49
+    assert NoiseEstimationConfig(candidate_spacing=0.01).candidates.size == 41
+    assert NoiseEstimationConfig(domain="pushing", candidate_spacing=0.25).candidates.size == 49
     assert NoiseEstimationConfig(domain="pushing", candidate_spacing=3.0).candidates.size == 5
-    fine = run(dataclasses.replace(SMALL, candidate_spacing=None))
+    fine = run(dataclasses.replace(SMALL, candidate_spacing=0.01))
     assert set(fine["n_candidates"]) == {41}
 
 

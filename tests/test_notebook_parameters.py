@@ -261,3 +261,10 @@ def test_every_notebook_checks_parameters_and_results_directory_before_anything_
     done = set().union(*called[:checks])
     assert "check_writable" in done, f"{notebook.name}: the results directory is not checked first"
     assert done & {"check_parameters", "config_from_parameters"}, f"{notebook.name}: parameters unchecked"
+
+
+def test_imported_constants_are_not_taken_for_parameters() -> None:
+    cell = namespace({"seeds": int}, seeds=2, DOMAINS={"wiping": 1}, PAPER_TABLE3={0.1: 0.19})
+    assert config_from_parameters(R2Config, cell).seeds == 2
+    with pytest.raises(ValueError, match="unknown parameter"):
+        config_from_parameters(R2Config, namespace({"seeds": int}, seeds=2, DOMAINS={}, domainz=["wiping"]))

@@ -10,12 +10,12 @@ from torch import nn
 from hipref.learners.pesi import (
     PESIConfig,
     PESILearner,
+    log_probs,
     pesi_loss,
     pesi_loss_n,
-    queried_log_probs,
     standard_ce_loss,
 )
-from hipref.learners.sysid import DESK_HEIGHT, SIModel
+from hipref.learners.sysid import DESK_HEIGHT, PretrainConfig, SIModel, pretrain
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
 from tests._clips import shown
 
@@ -39,7 +39,7 @@ class LogitTable(nn.Module):
 def _sgd_steps(table: LogitTable, pair: list[int], y: float, p: float, steps: int = 1) -> None:
     optimiser = torch.optim.SGD(table.parameters(), lr=0.5)
     for _ in range(steps):
-        loss = pesi_loss(queried_log_probs(table.logits[None], torch.tensor([pair])), torch.tensor([y]), p)
+        loss = pesi_loss(log_probs(table.logits[None], torch.tensor([pair])), torch.tensor([y]), p)
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
@@ -69,7 +69,7 @@ def test_zero_encouragement_ignores_the_label_and_leaves_the_distribution_unchan
     logits = torch.as_tensor(rng.normal(size=41), dtype=torch.float32)
     leaf = logits.clone().requires_grad_()
     for y in (1.0, -1.0):
-        loss = pesi_loss(queried_log_probs(leaf[None], torch.tensor([[3, 9]])), torch.tensor([y]), 0.0)
+        loss = pesi_loss(log_probs(leaf[None], torch.tensor([[3, 9]])), torch.tensor([y]), 0.0)
         torch.testing.assert_close(torch.autograd.grad(loss, leaf)[0], torch.zeros(41))
     table = LogitTable(logits)
     mode = int(table().argmax())
@@ -83,7 +83,7 @@ def test_zero_encouragement_ignores_the_label_and_leaves_the_distribution_unchan
 
 def test_eq2_gradient_moves_the_pair_logits_by_p_and_leaves_the_others() -> None:
     leaf = torch.randn(41, requires_grad=True)
-    loss = pesi_loss(queried_log_probs(leaf[None], torch.tensor([[7, 2]])), torch.tensor([1.0]), 0.25)
+    loss = pesi_loss(log_probs(leaf[None], torch.tensor([[7, 2]])), torch.tensor([1.0]), 0.25)
     (grad,) = torch.autograd.grad(loss, leaf)
     expected = torch.zeros(41)
     expected[7], expected[2] = -0.25, 0.25
@@ -94,30 +94,30 @@ def test_eq3_with_two_candidates_equals_eq2_in_value_and_gradient() -> None:
     logits = torch.randn(8, 41, requires_grad=True)
     pairs = torch.stack([torch.randperm(41)[:2] for _ in range(8)])
     y = torch.tensor([1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, -1.0])
-    log_probs = queried_log_probs(logits, pairs)
-    eq2 = pesi_loss(log_probs, y, 0.25)
+    queried = log_probs(logits, pairs)
+    eq2 = pesi_loss(queried, y, 0.25)
     (grad_eq2,) = torch.autograd.grad(eq2, logits, retain_graph=True)
-    eq3 = pesi_loss_n(log_probs, torch.stack([y, -y], dim=1), 0.25)
+    eq3 = pesi_loss_n(queried, torch.stack([y, -y], dim=1), 0.25)
     (grad_eq3,) = torch.autograd.grad(eq3, logits)
     torch.testing.assert_close(eq2, eq3)
     torch.testing.assert_close(grad_eq2, grad_eq3)
 
 
 def test_eq3_moves_weight_to_the_preferred_candidate_without_changing_the_total() -> None:
-    log_probs = queried_log_probs(torch.randn(1, 41), torch.tensor([[0, 1, 2, 3]]))
+    queried = log_probs(torch.randn(1, 41), torch.tensor([[0, 1, 2, 3]]))
     y_vec = torch.tensor([[-1 / 3, -1 / 3, 1.0, -1 / 3]])
-    probs = log_probs.exp()
+    probs = queried.exp()
     weights = probs + 0.25 * y_vec  # the weights of our reading of Eq. 3
     torch.testing.assert_close(weights.sum(), torch.tensor(1.0))
     torch.testing.assert_close(weights - probs, torch.tensor([[-0.25 / 3, -0.25 / 3, 0.25, -0.25 / 3]]))
-    expected = -(log_probs * weights).sum()
-    torch.testing.assert_close(pesi_loss_n(log_probs, y_vec, 0.25), expected)
+    expected = -(queried * weights).sum()
+    torch.testing.assert_close(pesi_loss_n(queried, y_vec, 0.25), expected)
 
 
 def test_standard_ce_is_cross_entropy_among_the_queried_candidates() -> None:
     logits = torch.log(torch.tensor([[0.1, 0.3, 0.05, 0.55]]))
     loss = standard_ce_loss(
-        queried_log_probs(logits, torch.tensor([[0, 1, 2]])), torch.tensor([[-0.5, -0.5, 1.0]])
+        log_probs(logits, torch.tensor([[0, 1, 2]])), torch.tensor([[-0.5, -0.5, 1.0]])
     )
     torch.testing.assert_close(loss, -torch.log(torch.tensor(0.05 / 0.45)))
 
@@ -235,3 +235,71 @@ def test_ask_refuses_a_slice_that_does_not_fit_the_si_input() -> None:
     learner = _learner(history=2)  # SI input 4 = h 2 x 2 features
     with pytest.raises(ValueError, match=r"features must have shape \(4,\)"):
         learner.ask(lambda phi, rng: np.zeros(6))
+
+
+def test_a_perfect_teacher_moves_a_brier_pretrained_estimate_towards_the_truth() -> None:
+    # SI pretrained on its distribution (Algorithm 4, Brier); on held-out slices the teacher's truth is put
+    # 8 cm from SI's estimate, and the default PESI learns 20 perfect preferences on that fixed slice.
+    # Eq. 2 only moves mass within the queried pair, so a pair on the far side of the truth moves the
+    # expectation away a little: no slice may end more than one candidate step (1 cm) further away, and
+    # on average the error must fall.
+    rng = np.random.default_rng(5)
+    features = rng.normal(loc=3.0, scale=[1.0, 5.0, 0.1, 2.0, 1.0, 1.0], size=(1040, 6))
+    latent = 1.0 / (1.0 + np.exp(-(features - 3.0) @ np.array([1.0, 0.2, 5.0, -0.5, 0.0, 0.0]) / 2.0))
+    heights = np.clip(DESK_HEIGHT.denormalise(latent) + rng.normal(0.0, 0.01, size=1040), 0.5, 0.9)
+    model = SIModel(6, DESK_HEIGHT, hidden_sizes=(32, 16), seed=0)
+    pretrain(model, features[:1000], heights[:1000], PretrainConfig(batch_size=64, n_steps=600), seed=0)
+    changes = []
+    for i in range(1000, 1040):
+        tau = features[i]
+        estimate = float(model.predict(tau))
+        for truth in (estimate - 0.08, estimate + 0.08):
+            if not 0.5 <= truth <= 0.9:
+                continue
+            learner = PESILearner(model, PESIConfig(history=1), seed=i)
+            teacher = ScriptedPreferenceTeacher(truth, 0.0, np.random.default_rng(i))
+            for _ in range(20):
+                query = learner.ask(shown(tau))
+                learner.tell(query, teacher.answer(query))
+            changes.append(abs(learner.estimate(tau) - truth) - abs(estimate - truth))
+    assert len(changes) >= 40
+    assert max(changes) <= DESK_HEIGHT.resolution
+    assert np.mean(changes) < -0.002
+
+
+def test_the_fine_tuned_parameters_are_the_only_ones_that_move() -> None:
+    features = np.array([0.3, -1.0, 2.0, 0.5])
+    teacher = ScriptedPreferenceTeacher(0.85, 0.0, np.random.default_rng(0))
+    for fine_tuned in ("last_layer", "output_bias"):
+        learner = _learner(seed=2, fine_tuned=fine_tuned, learning_rate=0.1)
+        before = {name: p.detach().clone() for name, p in learner.model.named_parameters()}
+        for _ in range(20):
+            query = learner.ask(shown(features))
+            learner.tell(query, teacher.answer(query))
+        moved = {name for name, p in learner.model.named_parameters() if not torch.equal(p, before[name])}
+        last = len(learner.model.net) - 1
+        expected = {f"net.{last}.bias"} | ({f"net.{last}.weight"} if fine_tuned == "last_layer" else set())
+        assert moved == expected
+
+
+def test_uniform_sampling_asks_about_the_whole_of_phi_and_belief_sampling_near_the_mode() -> None:
+    features = np.array([0.3, -1.0, 2.0, 0.5])
+    spread = {}
+    for sampling in ("uniform", "belief"):
+        learner = _learner(seed=3, candidate_sampling=sampling)
+        with torch.no_grad():
+            learner.model.net[-1].weight.zero_()
+            learner.model.net[-1].bias.copy_(torch.where(torch.arange(41) == 30, 20.0, 0.0))
+        asked = [c for _ in range(200) for c in learner.ask(shown(features)).candidates]
+        spread[sampling] = np.mean(np.isclose(asked, DESK_HEIGHT.values[30]))
+    assert spread["uniform"] < 0.1  # 2 of 41 candidates per query: about 5 %
+    assert spread["belief"] > 0.4
+
+
+def test_pr_over_all_of_phi_is_the_full_softmax_at_the_queried_candidates() -> None:
+    logits = torch.randn(3, 41)
+    pairs = torch.tensor([[0, 5], [7, 2], [40, 39]])
+    torch.testing.assert_close(log_probs(logits, pairs, "all"), torch.log_softmax(logits, 1).gather(1, pairs))
+    assert torch.allclose(log_probs(logits, pairs, "query").exp().sum(1), torch.ones(3))
+    with pytest.raises(ValueError, match="pr_domain must be one of"):
+        log_probs(logits, pairs, "some")

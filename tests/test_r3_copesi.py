@@ -3,16 +3,17 @@
 import pandas as pd
 import pytest
 
-from hipref.experiments.r3_copesi import R3Config, cells, final_difference, run_seeds, verdict
+from hipref.experiments.r3_copesi import R3Config, cells, final_difference, verdict
 
 
-def test_both_methods_share_every_environment_seed() -> None:
+def test_both_methods_share_every_environment() -> None:
     config = R3Config(domains=("pushing",), noise_levels=(0.2,), seeds=3)
     grid = cells(config)
-    assert len(grid) == 2 * 3
-    by_method = {m: sorted(c.seed for c in grid if c.method == m) for m in ("pesi", "co_pesi")}
-    assert by_method["pesi"] == by_method["co_pesi"] == sorted(run_seeds(config))
-    assert run_seeds(config) == run_seeds(R3Config(seeds=3))
+    environments = sorted(config.environments("pushing"))
+    assert len(environments) == len(config.masses) * 3
+    assert len(grid) == 2 * len(environments)
+    for method in ("pesi", "co_pesi"):
+        assert sorted((c.ground_truth, c.seed) for c in grid if c.method == method) == environments
 
 
 @pytest.mark.parametrize(
@@ -24,9 +25,15 @@ def test_a_bad_parameter_is_refused_with_its_name(field: str, value: object) -> 
         R3Config(**{field: value})
 
 
+TRUTHS = (11.0, 17.0)
+
+
 def _rows(co_error: list[float], co_success: list[float]) -> pd.DataFrame:
-    pesi = [("pesi", s, 1.0, 0.5) for s in range(len(co_error))]
-    co = [("co_pesi", s, e, r) for s, (e, r) in enumerate(zip(co_error, co_success, strict=True))]
+    """PESI at error 1.0 and success 0.5 everywhere; CO-PESI's values listed per environment. Seeds repeat
+    across the true masses, as in `R3Config.environments`, so only (truth, seed) identifies a run."""
+    environments = [(truth, s) for truth in TRUTHS for s in range(len(co_error) // len(TRUTHS))]
+    pesi = [("pesi", truth, s, 1.0, 0.5) for truth, s in environments]
+    co = [("co_pesi", t, s, e, r) for (t, s), e, r in zip(environments, co_error, co_success, strict=True)]
     return pd.DataFrame(
         [
             {
@@ -37,8 +44,9 @@ def _rows(co_error: list[float], co_success: list[float]) -> pd.DataFrame:
                 "episode": 99,
                 "metric": k,
                 "value": v,
+                "ground_truth": truth,
             }
-            for m, s, e, r in pesi + co
+            for m, truth, s, e, r in pesi + co
             for k, v in (("param_error", e), ("success_rate", r))
         ]
     )
@@ -47,7 +55,32 @@ def _rows(co_error: list[float], co_success: list[float]) -> pd.DataFrame:
 def test_a_consistent_improvement_is_better_and_a_mixed_one_is_no_difference() -> None:
     better = _rows([0.5, 0.6, 0.4, 0.5], [0.8, 0.9, 0.7, 0.8])
     assert final_difference(better, "pushing", 0.2, "param_error")[:1] == pytest.approx((-0.5,))
+    assert final_difference(better, "pushing", 0.2, "param_error")[3] == 4
     assert verdict(better, "pushing", 0.2, "better")[0] == "yes"
+    assert verdict(better, "pushing", 0.2, "no difference")[0] == "no"
     mixed = _rows([0.5, 1.5, 0.8, 1.2], [0.8, 0.2, 0.6, 0.4])
     assert verdict(mixed, "pushing", 0.2, "better")[0] == "no"
     assert verdict(mixed, "pushing", 0.2, "no difference")[0] == "yes"
+
+
+def test_equal_runs_are_not_better_and_one_metric_alone_is_partly() -> None:
+    equal = _rows([1.0] * 4, [0.5] * 4)
+    assert verdict(equal, "pushing", 0.2, "better")[0] == "no"
+    assert verdict(equal, "pushing", 0.2, "no difference")[0] == "yes"
+    error_only = _rows([0.5, 0.6, 0.4, 0.5], [0.5] * 4)
+    assert verdict(error_only, "pushing", 0.2, "better")[0] == "partly"
+    # Both means lean the better way, neither interval excludes zero: no evidence, so not 'partly'.
+    leaning = _rows([0.2, 1.6, 0.9, 1.1], [0.9, 0.1, 0.6, 0.5])
+    assert final_difference(leaning, "pushing", 0.2, "param_error")[0] < 0
+    assert final_difference(leaning, "pushing", 0.2, "success_rate")[0] > 0
+    assert verdict(leaning, "pushing", 0.2, "better")[0] == "no"
+
+
+def test_the_verdict_pairs_runs_by_environment_whatever_the_row_order() -> None:
+    rows = _rows([0.5, 0.6, 0.4, 0.5], [0.8, 0.9, 0.7, 0.8])
+    shuffled = rows.sample(frac=1.0, random_state=0)
+    assert verdict(shuffled, "pushing", 0.2, "better") == verdict(rows, "pushing", 0.2, "better")
+    with pytest.raises(ValueError, match="no rows for domain='wiping'"):
+        final_difference(rows, "wiping", 0.2, "param_error")
+    with pytest.raises(ValueError, match="co_pesi_estimated"):
+        final_difference(rows, "pushing", 0.2, "param_error", baseline="co_pesi_estimated")

@@ -9,10 +9,14 @@ import pytest
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.r2_noise import R2Config
 from hipref.experiments.sysid import (
+    EvaluationSpec,
+    FineTuning,
     PretrainData,
+    Protocol,
     SIRun,
     World,
     collect_dataset,
+    evaluation_episodes,
     pretrained_model,
     run_si,
 )
@@ -34,17 +38,30 @@ def test_osi_pretraining_beats_predicting_the_midpoint_on_held_out_environments(
 
 
 def test_a_run_gives_identical_rows_twice():
-    cell = SIRun("wiping", "pesi", noise=0.2, seed=3, episodes=4, eval_every=2, eval_episodes=2, data=TINY)
+    cell = SIRun("wiping", "pesi", 0.64, noise=0.2, seed=3, episodes=4, eval_every=2, eval_episodes=2,
+                 data=TINY)
     first, second = run_si(cell), run_si(cell)
     pd.testing.assert_frame_equal(first, second)
-    assert set(first.metric) == {"param_error", "success_rate"}
+    readouts = {"param_error", "param_error_argmax", "param_error_multislice"}
+    assert set(first.metric) == {*readouts, "success_rate"}
     assert sorted(first.episode.unique()) == [0, 2, 4]
+
+
+def test_co_pesi_reports_its_filter_against_the_recorded_flips():
+    cell = SIRun("pushing", "co_pesi", 14.0, noise=0.3, episodes=40, eval_every=20, eval_episodes=1,
+                 data=TINY)
+    rows = run_si(cell)
+    quality = rows[rows.metric.isin(["filter_precision", "filter_recall"])]
+    assert set(quality.metric) == {"filter_precision", "filter_recall"}
+    assert quality.value.between(0.0, 1.0).all()
+    assert "filter_precision" not in set(run_si(SIRun("pushing", "pesi", 14.0, noise=0.3, episodes=2,
+                                                      eval_every=2, eval_episodes=1, data=TINY)).metric)
 
 
 def test_every_method_meets_the_same_evaluation_episodes():
     # Before any preference the methods share SI's pretrained model: equal episodes, equal first rows.
     first = [
-        run_si(SIRun("pushing", method, seed=2, episodes=2, eval_every=2, eval_episodes=3, data=TINY))
+        run_si(SIRun("pushing", method, 12.5, seed=2, episodes=2, eval_every=2, eval_episodes=3, data=TINY))
         for method in ("osi", "pesi", "pesi_ce")
     ]
     at_start = [frame[frame.episode == 0].value.tolist() for frame in first]
@@ -69,11 +86,18 @@ def test_a_slice_is_cut_from_the_whole_clip_at_a_uniform_place(domain, truth, es
 @pytest.mark.parametrize(
     "make",
     [
-        lambda: SIRun("juggling", "pesi"),
-        lambda: SIRun("wiping", "pesi", noise=1.5),
-        lambda: SIRun("wiping", "magic"),
-        lambda: SIRun("wiping", "pesi", ground_truth=1.2),
-        lambda: SIRun("wiping", "co_pesi", n_candidates=3),
+        lambda: SIRun("juggling", "pesi", 0.7),
+        lambda: SIRun("wiping", "pesi", 0.7, noise=1.5),
+        lambda: SIRun("wiping", "magic", 0.7),
+        lambda: SIRun("wiping", "pesi", 1.2),
+        lambda: SIRun("wiping", "co_pesi", 0.7, n_candidates=3),
+        lambda: SIRun("wiping", "pesi", 0.7, episodes=0),
+        lambda: R2Config(episodes=0),
+        lambda: R2Config(heights=(0.45,)),
+        lambda: R2Config(masses=()),
+        lambda: PretrainData(loss="mse"),
+        lambda: FineTuning(candidate_sampling="nearest"),
+        lambda: FineTuning(coteaching_schedule="never"),
         lambda: R2Config(noise_levels=(0.1, -0.2)),
         lambda: R2Config(domains=("juggling",)),
         lambda: NCandidatesConfig(n_candidates=(1,)),
@@ -86,3 +110,25 @@ def test_bad_configs_are_refused_before_any_compute(make, monkeypatch):
     monkeypatch.setattr("hipref.experiments.sysid.collect_dataset", no_compute)
     with pytest.raises(ValueError):
         make()
+
+
+def test_the_protocol_crosses_a_fixed_grid_of_truths_with_seeds_and_osi_ignores_the_fine_tuning():
+    protocol = Protocol(heights=(0.6, 0.8), masses=(10.0,), seeds=2)
+    assert protocol.environments("wiping") == [(0.6, 0), (0.6, 1), (0.8, 0), (0.8, 1)]
+    assert protocol.environments("pushing") == [(10.0, 0), (10.0, 1)]
+    tuned = FineTuning(candidate_sampling="belief", coteaching_schedule="reset_every_step")
+    # One OSI run per environment serves every study and variant; PESI ignores the classifier schedule.
+    osi = protocol.run_cell("wiping", "osi", 0.6, 0)
+    assert protocol.run_cell("wiping", "osi", 0.6, 0, tuned, noise=0.3) == osi
+    pesi = protocol.run_cell("wiping", "pesi", 0.6, 0, tuned)
+    assert pesi.fine_tuning.coteaching_schedule == FineTuning().coteaching_schedule
+    assert pesi.fine_tuning.candidate_sampling == "belief"
+
+
+def test_two_truths_with_one_seed_draw_different_evaluation_episodes():
+    world = World("wiping")
+    first, second = (
+        evaluation_episodes(world, EvaluationSpec("wiping", truth, 0, 1, 2, 2, 3))[0] for truth in (0.6, 0.8)
+    )
+    assert not np.array_equal(first[0].layout[0], second[0].layout[0])
+    assert first[0].slices.shape == (2, 3 * first[0].slices.shape[1] // 3)

@@ -24,19 +24,19 @@ class NCandidatesConfig(Protocol):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        check_choice("domain", self.domain, tuple(DOMAINS))
         if not self.n_candidates:
             raise ValueError("n_candidates must name at least one N, got ()")
         for n in self.n_candidates:
-            check_int("n_candidates", n, 2, 41)
-        check_choice("domain", self.domain, tuple(DOMAINS))
+            check_int("n_candidates", n, 2, DOMAINS[self.domain].candidates.size)
         check_range("noise", self.noise, 0.0, 1.0)
 
 
 def cells(cfg: NCandidatesConfig) -> list[SIRun]:
     return [
-        cfg.run_cell(cfg.domain, "pesi", seed, noise=cfg.noise, n_candidates=n)
+        cfg.run_cell(cfg.domain, "pesi", truth, seed, noise=cfg.noise, n_candidates=n)
         for n in cfg.n_candidates
-        for seed in range(cfg.seeds)
+        for truth, seed in cfg.environments(cfg.domain)
     ]
 
 

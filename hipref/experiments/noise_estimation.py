@@ -71,11 +71,11 @@ class NoiseEstimationConfig:
     """True fractions of flipped labels (Table 3: 0.10 to 0.40 in steps of 0.05)."""
     domain: str = "wiping"
     """Whose parameter range the preferences are about: 'wiping' (desk height, A.9's example) or 'pushing'."""
-    candidate_spacing: float | None = PAPER_EXAMPLE_SPACING
+    candidate_spacing: float = PAPER_EXAMPLE_SPACING
     """Spacing of the candidates over the domain's whole range, in its unit (m or kg); it must divide the
     range into whole steps. Default: A.9's example, 0.1 m (5 heights on [0.5, 0.9] m; 3.0 kg gives 5 masses
-    on [8, 20] kg). None: the grid the learners see (`CANDIDATES`: 41 heights 0.01 m apart, 49 masses
-    0.25 kg apart)."""
+    on [8, 20] kg). The grids the learners see (`CANDIDATES`) are 0.01 m (41 heights) and 0.25 kg (49
+    masses)."""
     seed: int = 0
     """Root seed; each dataset's generator derives from it, the noise level and the repetition."""
 
@@ -89,24 +89,21 @@ class NoiseEstimationConfig:
         for level in self.noise_levels:
             check_range("noise_levels", level, 0.0, 1.0)
         check_choice("domain", self.domain, CANDIDATES)
-        if self.candidate_spacing is not None:
-            grid = CANDIDATES[self.domain]
-            span = grid.high - grid.low
-            spacing = self.candidate_spacing
-            ok = isinstance(spacing, int | float) and not isinstance(spacing, bool) and 0 < spacing <= span
-            if not ok or abs(span / spacing - round(span / spacing)) > 1e-6:
-                raise ValueError(
-                    f"candidate_spacing must be None or a number in (0, {span:g}] dividing the {self.domain} "
-                    f"range [{grid.low:g}, {grid.high:g}] into whole steps, got {spacing!r}"
-                )
+        grid = CANDIDATES[self.domain]
+        span = grid.high - grid.low
+        spacing = self.candidate_spacing
+        ok = isinstance(spacing, int | float) and not isinstance(spacing, bool) and 0 < spacing <= span
+        if not ok or abs(span / spacing - round(span / spacing)) > 1e-6:
+            raise ValueError(
+                f"candidate_spacing must be a number in (0, {span:g}] dividing the {self.domain} "
+                f"range [{grid.low:g}, {grid.high:g}] into whole steps, got {spacing!r}"
+            )
         check_int("seed", self.seed, 0)
 
     @property
     def candidates(self) -> CandidateSet:
         """The candidates the random pairs are drawn from."""
         grid = CANDIDATES[self.domain]
-        if self.candidate_spacing is None:
-            return grid
         return CandidateSet(low=grid.low, high=grid.high, resolution=float(self.candidate_spacing))
 
 

@@ -30,6 +30,7 @@ from hipref.envs.gridworld import Cell, WipingGrid
 from hipref.envs.wiping import WipingTask
 from hipref.learners.coach import CoachConfig, TabularCoach
 from hipref.learners.pretrained_coach import (
+    OBSERVATION_SIZE,
     PretrainedCoach,
     PretrainedCoachConfig,
     apply_action,
@@ -38,7 +39,7 @@ from hipref.learners.pretrained_coach import (
     low_level_expert,
     observe,
 )
-from hipref.sweep import cached_artefact, run_sweep
+from hipref.sweep import Expect, cached_artefact, run_sweep
 from hipref.teachers.feedback import ScriptedFeedbackTeacher
 from hipref.validation import check_choice, check_int, check_range
 
@@ -124,6 +125,10 @@ def demonstrations(spec: DemoSpec) -> tuple[np.ndarray, np.ndarray]:
         "r1_demonstrations",
         spec,
         lambda: collect_demonstrations(spec.count, spec.goals, spec.height, spec.chunk_periods, spec.seed),
+        expect=Expect(
+            tuple,
+            lambda d: d[0].ndim == 2 and d[0].shape[1] == OBSERVATION_SIZE and d[1].shape == (len(d[0]),),
+        ),
     )
 
 

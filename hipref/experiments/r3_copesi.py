@@ -13,18 +13,19 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from hipref.experiments.sysid import DOMAINS, PretrainData, SIRun, run_si
+from hipref.experiments.sysid import DOMAINS, Protocol, SIRun, run_si
 from hipref.experiments.sysid import METHODS as SI_METHODS
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import check_choice, check_range
+from hipref.verdicts import Difference, better, combine, no_difference, paired_difference
 
 METHODS: tuple[str, ...] = ("pesi", "co_pesi")
 """The two methods of Figs. 3 and 5; co_pesi is told the true noise level (A.7: remember rate 1 - noise)."""
 
 
 @dataclass(frozen=True)
-class R3Config:
-    """Parameters of notebook 04 (defaults: the quick profile; the paper's values where it gives them)."""
+class R3Config(Protocol):
+    """Parameters of notebook 04 (the paper's values where it gives them; the sizes of the quick profile)."""
 
     domains: tuple[str, ...] = ("wiping", "pushing")
     """Domains to run: 'wiping' (Fig. 3, desk height) and 'pushing' (Fig. 5, cube mass)."""
@@ -32,24 +33,21 @@ class R3Config:
     """Methods compared; Figs. 8 and 9 add 'co_pesi_estimated' (A.9)."""
     noise_levels: tuple[float, ...] = (0.1, 0.2, 0.3)
     """Fractions of flipped preferences (section 5: 10, 20 and 30%)."""
-    seeds: int = 2
-    """Environments (seeds) per domain and noise level (A.7: 15 repetitions)."""
-    episodes: int = 99
-    """Learning episodes per run; evaluated at 0 and every `eval_every` (section 5: every 33)."""
-    eval_every: int = 33
-    """Learning episodes between evaluations (section 5: 33)."""
+    heights: tuple[float, ...] = (0.6,)
+    """True desk heights in m of the wiping environments, each in [0.5, 0.9] (full profile: 5, evenly)."""
+    masses: tuple[float, ...] = (11.0,)
+    """True cube masses in kg of the pushing environments, each in [8, 20] (full profile: 5, evenly)."""
     eval_episodes: int = 5
     """Evaluation episodes per evaluation (section 5: 10)."""
-    pretrain_steps: int = 3000
-    """Adam steps of Algorithm 4 pretraining (shared with the other SI studies when equal)."""
-    seed: int = 0
-    """Root seed; the seeds of the runs derive from it."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         if not self.domains:
             raise ValueError(f"domains must name at least one of {sorted(DOMAINS)}, got {self.domains!r}")
         for domain in self.domains:
             check_choice("domains", domain, DOMAINS)
+        if not self.methods:
+            raise ValueError(f"methods must name at least one of {list(SI_METHODS)}, got ()")
         for method in self.methods:
             check_choice("methods", method, SI_METHODS)
         if not self.noise_levels:
@@ -58,43 +56,22 @@ class R3Config:
             )
         for level in self.noise_levels:
             check_range("noise_levels", level, 0.0, 1.0)
-        check_int("seeds", self.seeds, 1, 10_000)
-        check_int("episodes", self.episodes, 1)
-        check_int("eval_every", self.eval_every, 1, self.episodes)
-        check_int("eval_episodes", self.eval_episodes, 1)
-        check_int("pretrain_steps", self.pretrain_steps, 0)
-        check_int("seed", self.seed, 0)
-
-
-def run_seeds(config: R3Config) -> list[int]:
-    """One seed per environment, from numpy's SeedSequence; shared by every domain, noise level and method."""
-    children = np.random.SeedSequence([config.seed, 4]).spawn(config.seeds)
-    return [int(child.generate_state(1)[0] % 2**31) for child in children]
 
 
 def cells(config: R3Config) -> list[SIRun]:
-    """The sweep: domain x noise level x method x seed."""
-    data = PretrainData(pretrain_steps=config.pretrain_steps)
+    """The sweep: domain x noise level x method x environment (truth, seed)."""
     return [
-        SIRun(
-            domain=domain,
-            method=method,
-            noise=float(noise),
-            seed=seed,
-            episodes=config.episodes,
-            eval_every=config.eval_every,
-            eval_episodes=config.eval_episodes,
-            data=data,
-        )
+        config.run_cell(domain, method, truth, seed, noise=float(noise))
         for domain in config.domains
         for noise in config.noise_levels
         for method in config.methods
-        for seed in run_seeds(config)
+        for truth, seed in config.environments(domain)
     ]
 
 
 def run(config: R3Config, **sweep: object) -> pd.DataFrame:
-    """Tidy rows (param_error, success_rate per evaluation) of every run."""
+    """Tidy rows of every run (see `run_si`), with the filter's precision and recall for CO-PESI."""
+    config.pretrain(config.domains)
     return run_sweep(run_si, cells(config), desc="R3: " + " vs ".join(config.methods), **sweep)
 
 
@@ -109,19 +86,17 @@ def final_difference(
     resamples: int = 5000,
     seed: int = 0,
 ) -> tuple[float, float, float, int]:
-    """`method` minus `baseline` at the last evaluation: the mean paired difference over seeds, its 95%
-    bootstrap interval (seeds resampled with replacement) and the number of seeds. With one seed the
-    interval is the point itself: no spread can be measured."""
-    final = rows[(rows["domain"] == domain) & np.isclose(rows["noise"], noise) & (rows["metric"] == metric)]
-    final = final[final["episode"] == final["episode"].max()]
-    wide = final.pivot_table(index="seed", columns="method", values="value").dropna()
-    if method not in wide or baseline not in wide:
-        raise ValueError(f"no paired {baseline}/{method} runs for domain={domain!r}, noise={noise!r}")
-    difference = (wide[method] - wide[baseline]).to_numpy()
-    rng = np.random.default_rng(seed)
-    boot = rng.choice(difference, size=(resamples, difference.size)).mean(axis=1)
-    low, high = np.quantile(boot, [0.025, 0.975])
-    return float(difference.mean()), float(low), float(high), int(difference.size)
+    """`method` minus `baseline` at the last evaluation: (mean, low, high, pairs).
+
+    `hipref.verdicts.paired_difference` on the rows of `domain` at `noise`: runs are paired on domain, true
+    parameter and seed, the interval is a 95% bootstrap over the pairs, and with one pair the interval is
+    the point itself. A run without a partner is left out of the pairs.
+    """
+    at = rows[(rows["domain"] == domain) & np.isclose(rows["noise"], noise)]
+    if at.empty:
+        raise ValueError(f"no rows for domain={domain!r} at noise={noise!r}")
+    d = paired_difference(at, metric=metric, method=method, baseline=baseline, resamples=resamples, seed=seed)
+    return d.mean, d.low, d.high, d.n
 
 
 def verdict(
@@ -135,24 +110,26 @@ def verdict(
 ) -> tuple[str, str]:
     """Test '`method` better than `baseline`' or 'no difference' at the final evaluation on both metrics.
 
-    Better means a lower param_error and a higher success_rate, each with a 95% interval excluding zero:
-    'yes' if both, 'partly' if one. No difference: 'yes' if both intervals contain zero, 'partly' if one.
+    Each metric gets a rule of `hipref.verdicts`: `better` (a lower param_error, a higher success_rate,
+    with the 95% interval wholly on that side of zero) or `no_difference` (the interval contains zero). The
+    claim holds ('yes') if both metrics do, 'partly' if one does, 'no' if neither (`combine`). A metric
+    whose mean merely leans the better way (`better` says 'partly') does not support the claim: with two
+    metrics, a lean of one would otherwise make 'partly' out of no evidence at all.
     Returns (verdict, the measured differences as text).
     """
     check_choice("expect", expect, ("better", "no difference"))
-    results = {
-        m: final_difference(rows, domain, noise, m, method=method, baseline=baseline)
+    error, success = (
+        Difference(*final_difference(rows, domain, noise, m, method=method, baseline=baseline))
         for m in ("param_error", "success_rate")
-    }
-    error, success = results["param_error"], results["success_rate"]
+    )
     if expect == "better":
-        passed = [error[2] < 0, success[1] > 0]
+        parts = [better(error, lower_is_better=True), better(success, lower_is_better=False)]
+        held = combine(["yes" if part == "yes" else "no" for part in parts])
     else:
-        passed = [error[1] <= 0 <= error[2], success[1] <= 0 <= success[2]]
-    held = "yes" if all(passed) else "partly" if any(passed) else "no"
+        held = combine([no_difference(error), no_difference(success)])
     text = (
-        f"{method} - {baseline} at the last evaluation ({error[3]} seeds): error {error[0]:+.3g} "
-        f"[{error[1]:+.3g}, {error[2]:+.3g}], "
-        f"success {success[0]:+.2f} [{success[1]:+.2f}, {success[2]:+.2f}]"
+        f"{method} - {baseline} at the last evaluation ({error.n} environments): error {error.mean:+.3g} "
+        f"[{error.low:+.3g}, {error.high:+.3g}], "
+        f"success {success.mean:+.2f} [{success.low:+.2f}, {success.high:+.2f}]"
     )
     return held, text

@@ -30,15 +30,26 @@ import numpy as np
 import pandas as pd
 import torch
 
-from hipref.learners.coteaching import CoPESIConfig, CoPESILearner, EstimatedNoiseCoPESILearner
-from hipref.learners.pesi import PESIConfig, PESILearner
-from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT, CandidateSet, PretrainConfig, SIModel, pretrain
-from hipref.sweep import cached_artefact
+from hipref.learners.coteaching import (
+    CoPESIConfig,
+    CoPESILearner,
+    EstimatedNoiseCoPESILearner,
+    legacy_schedule,
+)
+from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS, PESIConfig, PESILearner
+from hipref.learners.sysid import (
+    CUBE_MASS,
+    DESK_HEIGHT,
+    PRETRAIN_LOSSES,
+    CandidateSet,
+    PretrainConfig,
+    SIModel,
+    pretrain,
+)
+from hipref.results import TIDY_COLUMNS
+from hipref.sweep import Expect, cached_artefact
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_int, check_range
-
-FEATURES_PER_PERIOD = 21
-"""Joint positions (6), joint velocities (6), wrist force (3), joint reference (6) per 10 ms period."""
 
 METHODS: tuple[str, ...] = ("osi", "pesi", "pesi_ce", "co_pesi", "co_pesi_estimated")
 """osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy (A.8); co_pesi:
@@ -90,16 +101,26 @@ class PretrainData:
     """Adam steps of Algorithm 4 (its loop has no stated end)."""
     learning_rate: float = 1e-3
     """Adam step size of Algorithm 4 (Table 2: 1e-3)."""
+    loss: str = "brier"
+    """What Algorithm 4's mean squared loss is taken over: 'brier' (SI's distribution against the target
+    distribution), 'expectation' (its mean only) or 'brier_expectation' (`hipref.learners.sysid.pretrain`)."""
     seed: int = 0
     """Seed of the collection and of the pretraining: one pretrained model per domain, shared by all runs."""
 
     def __post_init__(self) -> None:
+        check_choice("loss", self.loss, PRETRAIN_LOSSES)
         check_int("n_trajectories", self.n_trajectories, 2)
         check_int("trajectory_steps", self.trajectory_steps, self.history if self.history >= 1 else 1)
         check_int("history", self.history, 1)
         check_int("pretrain_steps", self.pretrain_steps, 0)
         check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
         check_int("seed", self.seed, 0)
+
+    @property
+    def collection(self) -> tuple[int, int, int, int]:
+        """What the dataset D depends on (not how SI is then trained on it), so pretraining variants share
+        one collection."""
+        return (self.n_trajectories, self.trajectory_steps, self.history, self.seed)
 
 
 class World:
@@ -191,7 +212,7 @@ def collect_dataset(domain: str, data: PretrainData) -> tuple[np.ndarray, np.nda
     Each trajectory has its parameter drawn uniformly from the range (A.7) and is made of rollouts of pi^l,
     each with its own uniformly random estimate, chained until `trajectory_steps` periods are collected:
     the estimate is what pi^l acts on, so a spread of estimates shows SI how each parameter looks through
-    both good and bad control. Returns (features (n, h * 21), parameters (n,)).
+    both good and bad control. Returns (features (n, h * features per period), parameters (n,)).
     """
     world = World(domain)
     rng = np.random.default_rng(np.random.SeedSequence([data.seed, 4]))
@@ -215,7 +236,11 @@ def pretrained_model(domain: str, data: PretrainData) -> SIModel:
 
     def build() -> SIModel:
         features, parameters = cached_artefact(
-            f"si_dataset_{domain}", data, lambda: collect_dataset(domain, data)
+            f"si_dataset_{domain}",
+            data.collection,
+            lambda: collect_dataset(domain, data),
+            expect=Expect(tuple, lambda d: d[0].ndim == 2 and d[0].shape[1] % data.history == 0
+                          and d[1].shape == (len(d[0]),)),
         )
         with _one_thread():
             model = SIModel(features.shape[1], spec.candidates, seed=data.seed)
@@ -223,12 +248,12 @@ def pretrained_model(domain: str, data: PretrainData) -> SIModel:
                 model,
                 features,
                 parameters,
-                PretrainConfig(data.learning_rate, n_steps=data.pretrain_steps),
+                PretrainConfig(data.learning_rate, n_steps=data.pretrain_steps, loss=data.loss),
                 data.seed,
             )
         return model
 
-    return cached_artefact(f"si_osi_{domain}", (domain, dataclasses.asdict(data)), build)
+    return cached_artefact(f"si_osi_{domain}", (domain, dataclasses.asdict(data)), build, expect=SIModel)
 
 
 class _one_thread:
@@ -242,6 +267,40 @@ class _one_thread:
         torch.set_num_threads(self.before)
 
 
+COTEACHING_SCHEDULES: tuple[str, ...] = ("learned", "reset_every_step")
+"""How CO-PESI's classifiers are refreshed (`hipref.learners.coteaching.CoPESIConfig`): 'learned', the
+refresh counted in preferences with several classifier rounds per preference (default); 'reset_every_step',
+the refresh counted in single co-teaching steps with one round each, under which the classifiers are reset
+before they can learn the (pair -> label) rule."""
+
+
+@dataclass(frozen=True)
+class FineTuning:
+    """How preferences fine-tune SI (Algorithm 2, Eq. 2/3; Algorithm 1 for CO-PESI): the paper's reading by
+    default, the alternatives a sensitivity study compares (notebook 08)."""
+
+    learning_rate: float = 1e-2
+    """Plain gradient step size of SI fine-tuning (A.7: 0.01)."""
+    encourage_percentage: float = 0.25
+    """p of Eq. 2 (A.7: 0.25)."""
+    candidate_sampling: str = "uniform"
+    """'uniform' (Algorithm 2: 'sampled from Phi') or 'belief' (from SI's current distribution)."""
+    pr_domain: str = "query"
+    """Pr of Eq. 2 over the queried candidates ('query') or all of Phi ('all')."""
+    fine_tuned: str = "all"
+    """Which parameters of SI are updated: 'all', 'last_layer' or 'output_bias'."""
+    coteaching_schedule: str = "learned"
+    """CO-PESI's classifier schedule, one of COTEACHING_SCHEDULES."""
+
+    def __post_init__(self) -> None:
+        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
+        check_range("encourage_percentage", self.encourage_percentage, 0.0, 1.0)
+        check_choice("candidate_sampling", self.candidate_sampling, CANDIDATE_SAMPLING)
+        check_choice("pr_domain", self.pr_domain, PR_DOMAINS)
+        check_choice("fine_tuned", self.fine_tuned, FINE_TUNED)
+        check_choice("coteaching_schedule", self.coteaching_schedule, COTEACHING_SCHEDULES)
+
+
 @dataclass(frozen=True)
 class SIRun:
     """One run (one sweep cell): a method fine-tuning SI in one environment with a fixed true parameter."""
@@ -250,63 +309,67 @@ class SIRun:
     """'wiping' (desk height) or 'pushing' (cube mass)."""
     method: str
     """One of METHODS."""
+    ground_truth: float
+    """The environment's true parameter, inside the domain's range."""
     noise: float = 0.0
     """Fraction of flipped preferences, in [0, 1]."""
     seed: int = 0
-    """Seed of the environment, the teacher and the learner; the same seed gives every method the same
-    environment and the same evaluation episodes."""
-    ground_truth: float | None = None
-    """The environment's true parameter; None draws it uniformly from the range with the seed."""
+    """Seed of the teacher, the learner and the evaluation, together with the ground truth: the same seed
+    and truth give every method the same teacher draws and the same evaluation episodes."""
     n_candidates: int = 2
     """N, candidates per query (Eq. 3, A.2); CO-PESI needs 2."""
     episodes: int = 99
-    """Learning episodes (preferences asked)."""
+    """Learning episodes (preferences asked), at least 1."""
     eval_every: int = 33
     """Learning episodes between evaluations (section 5: 33)."""
     eval_episodes: int = 10
     """Evaluation episodes per evaluation (section 5: 10)."""
-    learning_rate: float = 1e-2
-    """Gradient step size of SI fine-tuning (A.7: 0.01)."""
-    encourage_percentage: float = 0.25
-    """p of Eq. 2 (A.7: 0.25)."""
+    eval_slices: int = 3
+    """Probing slices per evaluation episode; the first drives the task attempt, all of them the
+    multi-slice estimate."""
+    fine_tuning: FineTuning = FineTuning()
+    """How preferences update SI."""
     data: PretrainData = PretrainData()
     """Algorithm 4's data and pretraining, shared by every run with the same value."""
 
     def __post_init__(self) -> None:
         spec = domain_spec(self.domain)
         check_choice("method", self.method, METHODS)
+        check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
         check_range("noise", self.noise, 0.0, 1.0)
         check_int("seed", self.seed, 0)
-        if self.ground_truth is not None:
-            check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
         check_int("n_candidates", self.n_candidates, 2, spec.candidates.size)
         if self.method.startswith("co_pesi") and self.n_candidates != 2:
             raise ValueError(
                 f"n_candidates must be 2 for co_pesi (pair classifiers), got {self.n_candidates}"
             )
-        check_int("episodes", self.episodes, 0)
-        check_int("eval_every", self.eval_every, 1)
+        check_int("episodes", self.episodes, 1)
+        check_int("eval_every", self.eval_every, 1, self.episodes)
         check_int("eval_episodes", self.eval_episodes, 1)
-        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
-        check_range("encourage_percentage", self.encourage_percentage, 0.0, 1.0)
+        check_int("eval_slices", self.eval_slices, 1)
 
 
 def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
     """The learner of `cell.method` on a copy of the pretrained model; None for OSI (no updates)."""
     spec = domain_spec(cell.domain)
+    tuning = cell.fine_tuning
     common = dict(
-        encourage_percentage=cell.encourage_percentage,
-        learning_rate=cell.learning_rate,
+        encourage_percentage=tuning.encourage_percentage,
+        learning_rate=tuning.learning_rate,
         batch_size=spec.batch_size,
         n_candidates=cell.n_candidates,
         history=cell.data.history,
+        candidate_sampling=tuning.candidate_sampling,
+        pr_domain=tuning.pr_domain,
+        fine_tuned=tuning.fine_tuned,
     )
     if cell.method == "osi":
         return None
     if cell.method in ("pesi", "pesi_ce"):
         loss = "soft" if cell.method == "pesi" else "standard"
         return PESILearner(model, PESIConfig(loss=loss, **common), seed)
-    config = CoPESIConfig(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
+    schedule = CoPESIConfig if tuning.coteaching_schedule == "learned" else legacy_schedule
+    config = schedule(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
     if cell.method == "co_pesi_estimated":
         # A.9: the forget number comes from Algorithm 5 on the preferences so far, not the true noise.
         return EstimatedNoiseCoPESILearner(model, config, seed)
@@ -314,17 +377,18 @@ def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
 
 
 class RunStreams(NamedTuple):
-    """A run's independent random streams, children of its seed's SeedSequence."""
+    """A run's independent random streams, children of its (seed, ground truth) SeedSequence."""
 
-    environment: np.random.SeedSequence
     teacher: np.random.SeedSequence
     learner: np.random.SeedSequence
     learning: np.random.SeedSequence
     evaluation: np.random.SeedSequence
 
 
-def run_streams(seed: int) -> RunStreams:
-    return RunStreams(*np.random.SeedSequence(seed).spawn(5))
+def run_streams(seed: int, ground_truth: float) -> RunStreams:
+    """The streams of the environment (seed, ground truth): two truths of a grid never share draws."""
+    micro = round(ground_truth * 1_000_000)
+    return RunStreams(*np.random.SeedSequence([seed, micro]).spawn(4))
 
 
 @dataclass(frozen=True)
@@ -334,141 +398,221 @@ class EvaluationSpec:
     domain: str
     ground_truth: float
     seed: int
-    """The run's seed, whose `run_streams(seed).evaluation` seeds the evaluations."""
+    """The run's seed, whose `run_streams(seed, ground_truth).evaluation` seeds the evaluations."""
     checkpoints: int
     eval_episodes: int
+    slices: int
     history: int
 
 
-Episode = tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]
-"""An evaluation episode: the slice SI estimates from, and the layout the task is then attempted in."""
+class Episode(NamedTuple):
+    """An evaluation episode: the probing slices SI estimates from, and the layout the task is then
+    attempted in."""
+
+    slices: np.ndarray
+    """(slices, input_dim): the first drives the attempt; all of them the multi-slice estimate."""
+    layout: tuple[np.ndarray, np.ndarray]
 
 
 def evaluation_episodes(world: World, spec: EvaluationSpec) -> list[list[Episode]]:
-    """Per checkpoint, its evaluation episodes: a probing slice and an attempt layout each, drawn from the
-    checkpoint's own seed. Every method, noise level and N of one environment meets the same episodes,
-    so they are built once (cached) and the methods' runs differ only in what SI makes of them."""
+    """Per checkpoint, its evaluation episodes, drawn from the checkpoint's own seed. Every method, noise
+    level and N of one environment meets the same episodes, so they are built once (cached) and the
+    methods' runs differ only in what SI makes of them: comparisons between methods are paired."""
 
     def build() -> list[list[Episode]]:
         checkpoints = []
-        for seq in run_streams(spec.seed).evaluation.spawn(spec.checkpoints):
+        for seq in run_streams(spec.seed, spec.ground_truth).evaluation.spawn(spec.checkpoints):
             rng = np.random.default_rng(seq)
             episodes = []
             for _ in range(spec.eval_episodes):
-                tau = world.probe_slice(spec.ground_truth, spec.history, rng)
-                episodes.append((tau, world.sample_layout(rng)))
+                taus = [world.probe_slice(spec.ground_truth, spec.history, rng) for _ in range(spec.slices)]
+                episodes.append(Episode(np.stack(taus), world.sample_layout(rng)))
             checkpoints.append(episodes)
         return checkpoints
 
-    return cached_artefact(f"si_evaluation_{spec.domain}", spec, build)
+    def complete(checkpoints: list[list[Episode]]) -> bool:
+        return len(checkpoints) == spec.checkpoints and all(
+            len(episodes) == spec.eval_episodes and all(len(e.slices) == spec.slices for e in episodes)
+            for episodes in checkpoints
+        )
+
+    return cached_artefact(f"si_evaluation_{spec.domain}", spec, build, expect=Expect(list, complete))
+
+
+def evaluate(
+    world: World, model: SIModel, episodes: list[Episode], ground_truth: float
+) -> dict[str, float]:
+    """SI frozen on one checkpoint's episodes: its errors by three read-outs, and the task's success.
+
+    param_error: |E_Pr[phi] - phi| on the first slice, the estimate the controller is given and the task
+    attempted with (success_rate). param_error_argmax: the most probable candidate instead of the mean.
+    param_error_multislice: the mean of E_Pr[phi] over all the episode's slices, less sensitive to one
+    unlucky slice.
+    """
+    errors: dict[str, list[float]] = {
+        "param_error": [],
+        "param_error_argmax": [],
+        "param_error_multislice": [],
+    }
+    successes = []
+    for episode in episodes:
+        expectations = model.predict(episode.slices)
+        phi_hat = float(expectations[0])
+        errors["param_error"].append(abs(phi_hat - ground_truth))
+        errors["param_error_argmax"].append(abs(float(model.predict_mode(episode.slices[0])) - ground_truth))
+        errors["param_error_multislice"].append(abs(float(expectations.mean()) - ground_truth))
+        successes.append(world.rollout(ground_truth, phi_hat, episode.layout)[1])
+    return {**{k: float(np.mean(v)) for k, v in errors.items()}, "success_rate": float(np.mean(successes))}
 
 
 def run_si(cell: SIRun) -> pd.DataFrame:
-    """One run of `cell` (a sweep cell function): tidy rows of param_error and success_rate per evaluation."""
-    spec = domain_spec(cell.domain)
+    """One run of `cell` (a sweep cell function): tidy rows of every metric per evaluation.
+
+    CO-PESI runs also report the precision and recall of their filter against the flips the scripted
+    teacher recorded (never shown to the learner), counted over the learning so far.
+    """
     model = pretrained_model(cell.domain, cell.data)
     with _one_thread():
-        env_seq, teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed)
-        ground_truth = cell.ground_truth
-        if ground_truth is None:
-            ground_truth = float(
-                np.random.default_rng(env_seq).uniform(spec.candidates.low, spec.candidates.high)
-            )
+        teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed, cell.ground_truth)
+        truth = cell.ground_truth
         world = World(cell.domain)
-        teacher = ScriptedPreferenceTeacher(ground_truth, cell.noise, np.random.default_rng(teacher_seq))
+        teacher = ScriptedPreferenceTeacher(truth, cell.noise, np.random.default_rng(teacher_seq))
         learner = make_learner(cell, model, int(learner_seq.generate_state(1)[0]))
         learn_rng = np.random.default_rng(learn_seq)
         h = cell.data.history
         n_checkpoints = cell.episodes // cell.eval_every + 1
-        checkpoints = evaluation_episodes(
-            world, EvaluationSpec(cell.domain, ground_truth, cell.seed, n_checkpoints, cell.eval_episodes, h)
+        spec = EvaluationSpec(
+            cell.domain, truth, cell.seed, n_checkpoints, cell.eval_episodes, cell.eval_slices, h
         )
-
-        def estimate(tau: np.ndarray) -> float:
-            return float(model.predict(tau)) if learner is None else learner.estimate(tau)
-
-        def evaluate(index: int) -> tuple[float, float]:
-            # The learner frozen: SI estimates from each episode's probing slice, the task is attempted with
-            # the estimate.
-            errors, successes = [], []
-            for tau, layout in checkpoints[index]:
-                phi_hat = estimate(tau)
-                errors.append(abs(phi_hat - ground_truth))
-                successes.append(world.rollout(ground_truth, phi_hat, layout)[1])
-            return float(np.mean(errors)), float(np.mean(successes))
-
-        rows = []
+        checkpoints = evaluation_episodes(world, spec)
+        rows: list[tuple[int, str, float]] = []
         for episode in range(cell.episodes + 1):
             if episode % cell.eval_every == 0:
-                error, success = evaluate(episode // cell.eval_every)
-                rows += [(episode, "param_error", error), (episode, "success_rate", success)]
+                current = model if learner is None else learner.model
+                metrics = evaluate(world, current, checkpoints[episode // cell.eval_every], truth)
+                if isinstance(learner, CoPESILearner):
+                    precision, recall = learner.filter_precision_recall(teacher.flipped)
+                    metrics |= {"filter_precision": precision, "filter_recall": recall}
+                rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
             if episode == cell.episodes or learner is None:
                 continue
             # Algorithm 2: execute pi^l with the candidates from one layout, sample a slice tau, ask for a
             # preference y, update SI (Eq. 2/3).
             layout = world.sample_layout(learn_rng)
-            query = learner.ask(
-                lambda phi, rng, layout=layout: world.clip_slice(ground_truth, phi, layout, h, rng)
-            )
+            query = learner.ask(lambda phi, rng, layout=layout: world.clip_slice(truth, phi, layout, h, rng))
             learner.tell(query, teacher.answer(query))
-    frame = pd.DataFrame(rows, columns=["episode", "metric", "value"])
-    return frame.assign(
+    return tidy_rows(
+        rows,
         domain=cell.domain,
         method=cell.method,
         noise=cell.noise,
         seed=cell.seed,
-        ground_truth=round(ground_truth, 6),
+        ground_truth=round(truth, 6),
         n_candidates=cell.n_candidates,
-    )[["domain", "method", "noise", "seed", "episode", "metric", "value", "ground_truth", "n_candidates"]]
+    )
 
 
-def midpoint_error(domain: str) -> float:
-    """Mean absolute error of always predicting the range's midpoint, for a uniform parameter."""
-    candidates = domain_spec(domain).candidates
-    return (candidates.high - candidates.low) / 4
+def tidy_rows(rows: list[tuple[int, str, float]], **keys: Any) -> pd.DataFrame:
+    """(episode, metric, value) rows with constant `keys` as the results contract's tidy frame."""
+    frame = pd.DataFrame(rows, columns=["episode", "metric", "value"]).assign(**keys)
+    extra = [k for k in keys if k not in TIDY_COLUMNS]
+    return frame[[*TIDY_COLUMNS, *extra]]
+
+
+def even_grid(candidates: CandidateSet, count: int) -> tuple[float, ...]:
+    """`count` truths at the centres of equal bins of the range, rounded to the candidate resolution."""
+    centres = candidates.low + (np.arange(count) + 0.5) * (candidates.high - candidates.low) / count
+    return tuple(float(round(c / candidates.resolution) * candidates.resolution) for c in centres)
 
 
 @dataclass(frozen=True)
 class Protocol:
-    """What the SI studies share: repetitions, the paper's evaluation protocol and Algorithm 4's size."""
+    """What the SI studies share: a fixed grid of true parameters crossed with seeds, the paper's
+    evaluation protocol and Algorithm 4's size.
 
-    seeds: int = 2
-    """Repetitions per setting (Table 2: 15); the true parameter is drawn per seed."""
+    Every method of a study meets the same environments (truth, seed) and the same evaluation episodes,
+    so methods are compared as paired differences (`hipref.verdicts`)."""
+
+    heights: tuple[float, ...] = (0.6, 0.8)
+    """True desk heights in m of the wiping environments, each in [0.5, 0.9] (full profile: 5, evenly)."""
+    masses: tuple[float, ...] = (11.0, 17.0)
+    """True cube masses in kg of the pushing environments, each in [8, 20] (full profile: 5, evenly)."""
+    seeds: int = 1
+    """Seeds per true parameter; truths x seeds is the repetitions of the paper (A.7: 15)."""
     episodes: int = 66
-    """Learning episodes per run."""
+    """Learning episodes per run, at least 1."""
     eval_every: int = 33
     """Learning episodes between evaluations (section 5: 33)."""
     eval_episodes: int = 10
     """Evaluation episodes per evaluation (section 5: 10)."""
+    eval_slices: int = 3
+    """Probing slices per evaluation episode (for the multi-slice estimate)."""
     n_trajectories: int = 100
     """Algorithm 4 trajectories (A.7: 100)."""
     pretrain_steps: int = 3000
     """Adam steps of Algorithm 4."""
+    pretrain_loss: str = "brier"
+    """Algorithm 4's loss: 'brier', 'expectation' or 'brier_expectation' (see `pretrain` of
+    `hipref.learners.sysid`)."""
     learning_rate: float = 1e-2
     """Gradient step size of SI fine-tuning (A.7: 0.01)."""
 
     def __post_init__(self) -> None:
+        for name, values, domain in (("heights", self.heights, "wiping"), ("masses", self.masses, "pushing")):
+            candidates = domain_spec(domain).candidates
+            if not values:
+                raise ValueError(
+                    f"{name} must hold at least one value in [{candidates.low}, {candidates.high}], got ()"
+                )
+            for value in values:
+                check_range(name, value, candidates.low, candidates.high)
         check_int("seeds", self.seeds, 1)
-        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
-        check_int("episodes", self.episodes, 0)
-        check_int("eval_every", self.eval_every, 1)
+        check_int("episodes", self.episodes, 1)
+        check_int("eval_every", self.eval_every, 1, self.episodes)
         check_int("eval_episodes", self.eval_episodes, 1)
-        self.data  # noqa: B018 - validates n_trajectories and pretrain_steps
+        check_int("eval_slices", self.eval_slices, 1)
+        FineTuning(learning_rate=self.learning_rate)
+        self.data  # noqa: B018 - validates n_trajectories, pretrain_steps and pretrain_loss
 
     @property
     def data(self) -> PretrainData:
-        return PretrainData(self.n_trajectories, pretrain_steps=self.pretrain_steps)
+        return PretrainData(self.n_trajectories, pretrain_steps=self.pretrain_steps, loss=self.pretrain_loss)
 
-    def run_cell(self, domain: str, method: str, seed: int, **setting: Any) -> SIRun:
-        """One run of this protocol; `setting` holds what the study varies (noise, ground truth, N)."""
+    def truths(self, domain: str) -> tuple[float, ...]:
+        """The grid of true parameters of `domain`."""
+        return self.heights if domain_spec(domain).name == "wiping" else self.masses
+
+    def environments(self, domain: str) -> list[tuple[float, int]]:
+        """Every (ground truth, seed) of `domain`: the grid crossed with the seeds."""
+        return [(truth, seed) for truth in self.truths(domain) for seed in range(self.seeds)]
+
+    def run_cell(
+        self,
+        domain: str,
+        method: str,
+        truth: float,
+        seed: int,
+        fine_tuning: FineTuning | None = None,
+        **setting: Any,
+    ) -> SIRun:
+        """One run of this protocol; `setting` holds what the study varies (noise, N). OSI learns nothing,
+        so its run ignores the fine-tuning and the noise: one OSI run per environment serves every study."""
+        tuning = fine_tuning if fine_tuning is not None else FineTuning(learning_rate=self.learning_rate)
+        if method == "osi":
+            tuning, setting = FineTuning(), {k: v for k, v in setting.items() if k != "noise"}
+        elif not method.startswith("co_pesi"):
+            # The classifier schedule means nothing without classifiers: such runs share one cache entry.
+            tuning = dataclasses.replace(tuning, coteaching_schedule=FineTuning.coteaching_schedule)
         return SIRun(
             domain,
             method,
+            truth,
             seed=seed,
             episodes=self.episodes,
             eval_every=self.eval_every,
             eval_episodes=self.eval_episodes,
-            learning_rate=self.learning_rate,
+            eval_slices=self.eval_slices,
+            fine_tuning=tuning,
             data=self.data,
             **setting,
         )

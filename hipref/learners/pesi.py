@@ -24,18 +24,28 @@ SI_LOSSES: tuple[str, ...] = ("soft", "standard")
 """'soft': Eq. 2 (two candidates) / Eq. 3 (N); 'standard': cross-entropy, the pesi_ce ablation of A.8."""
 
 
-def queried_log_probs(logits: torch.Tensor, indices: torch.Tensor) -> torch.Tensor:
-    """log Pr(phi_i) of the queried candidates, Pr being SI's distribution renormalised over the query.
+PR_DOMAINS: tuple[str, ...] = ("query", "all")
+"""Over what Pr in Eq. 2/3 is a distribution: the queried candidates, or all of Phi (see `log_probs`)."""
+CANDIDATE_SAMPLING: tuple[str, ...] = ("uniform", "belief")
+"""How Algorithm 2 draws the queried candidates from Phi (see `PESILearner.ask`)."""
+FINE_TUNED: tuple[str, ...] = ("all", "last_layer", "output_bias")
+"""Which of SI's parameters preferences fine-tune: every layer, the output layer, or its bias alone."""
 
-    logits: (B, |Phi|) SI's logits; indices: (B, N) the queried candidates. Eq. 2 and 3 compare the queried
-    candidates with each other, as the Bradley-Terry preference model of Christiano et al. (2017) that A.8
-    sets them against: Pr(phi_i) is the probability that phi_i is the best of the N shown. Over the query
-    the weights Pr(phi_i) + p y_i then sum to one, and an update only moves mass between the queried
-    candidates, by an amount set by p. (Read over all of Phi instead, the weights sum to less than one and
-    every update also drains the unqueried candidates onto the queried ones whatever the label: in our
-    runs that sharpening alone, at p = 0, doubled SI's error.)
+
+def log_probs(logits: torch.Tensor, indices: torch.Tensor, pr_domain: str = "query") -> torch.Tensor:
+    """log Pr(phi_i) of the queried candidates (B, N), from SI's logits (B, |Phi|) and the query (B, N).
+
+    'query': SI's distribution renormalised over the queried candidates, as the Bradley-Terry preference
+    model of Christiano et al. (2017) that A.8 sets Eq. 2 against: Pr(phi_i) is the probability that phi_i
+    is the best of the N shown. The weights Pr(phi_i) + p y_i then sum to one and an update only moves mass
+    between the queried candidates. 'all': SI's distribution over all of Phi, the literal Pr(phi in Phi) of
+    section 4; the weights then sum to less than one, and every update also drains the unqueried candidates
+    onto the queried ones, whatever the label.
     """
-    return torch.log_softmax(logits.gather(1, indices), dim=1)
+    check_choice("pr_domain", pr_domain, PR_DOMAINS)
+    if pr_domain == "query":
+        return torch.log_softmax(logits.gather(1, indices), dim=1)
+    return torch.log_softmax(logits, dim=1).gather(1, indices)
 
 
 def pesi_loss(log_probs_pair: torch.Tensor, y: torch.Tensor, encourage_percentage: float) -> torch.Tensor:
@@ -43,7 +53,7 @@ def pesi_loss(log_probs_pair: torch.Tensor, y: torch.Tensor, encourage_percentag
 
     L = -[log Pr(phi_0) (Pr(phi_0) + p y) + log Pr(phi_1) (Pr(phi_1) - p y)]
 
-    log_probs_pair: (B, 2) from `queried_log_probs` (log-probabilities rather than probabilities so a
+    log_probs_pair: (B, 2) from `log_probs` (log-probabilities rather than probabilities so a
     vanishing Pr keeps a usable gradient). y: (B,) in {-1, 1}, 1 meaning phi_0 preferred. The weights
     Pr + p y are constants (detached): the target is the model's own current belief with p moved from the
     dispreferred to the preferred candidate. The gradient on the pair's logits is then exactly -p y and
@@ -68,7 +78,7 @@ def pesi_loss_n(log_probs_n: torch.Tensor, y_vec: torch.Tensor, encourage_percen
     still sum to one, p being moved from the N - 1 dispreferred candidates to the preferred one, as in
     Eq. 2. (Summing all N probabilities into every weight would not reduce to Eq. 2.)
 
-    log_probs_n: (B, N) from `queried_log_probs`; y_vec: (B, N) label vectors.
+    log_probs_n: (B, N) from `log_probs`; y_vec: (B, N) label vectors.
     """
     weights = log_probs_n.detach().exp() + encourage_percentage * y_vec
     return -(log_probs_n * weights).sum(dim=1).mean()
@@ -77,7 +87,7 @@ def pesi_loss_n(log_probs_n: torch.Tensor, y_vec: torch.Tensor, encourage_percen
 def standard_ce_loss(log_probs_n: torch.Tensor, y_vec: torch.Tensor) -> torch.Tensor:
     """The pesi_ce ablation (A.8): cross-entropy with the preferred candidate as the positive class.
 
-    log_probs_n: (B, N) from `queried_log_probs`, so this is the Bradley-Terry loss of Christiano et al.
+    log_probs_n: (B, N) from `log_probs`, so this is the Bradley-Terry loss of Christiano et al.
     (2017) that A.8 contrasts with: L = -log Pr(preferred). Unlike Eq. 2 it pushes toward certainty in the
     preferred candidate however sure the model already is.
     """
@@ -102,9 +112,17 @@ class PESIConfig:
     """N, candidates per query: 2 is Eq. 2, more is Eq. 3 (A.2)."""
     history: int = 3
     """h, control periods per trajectory slice tau (Algorithm 2's input; Table 2: 3)."""
+    candidate_sampling: str = "uniform"
+    """'uniform': phi_0..phi_{N-1} drawn uniformly from Phi (Algorithm 2: 'sampled from Phi'); 'belief':
+    drawn from SI's Pr(phi) at the previous query's slice, mixed with `query_uniform_mix` of uniform."""
     query_uniform_mix: float = 0.05
-    """Weight of a uniform distribution mixed into Pr(phi) when drawing query candidates, in (0, 1]. It keeps
+    """With 'belief' sampling, the weight of a uniform distribution mixed into Pr(phi), in (0, 1]: it keeps
     every candidate askable and lets N distinct candidates be drawn even from a collapsed distribution."""
+    pr_domain: str = "query"
+    """Pr of Eq. 2/3 over the queried candidates ('query') or over all of Phi ('all'); see `log_probs`."""
+    fine_tuned: str = "all"
+    """Which parameters of SI the preferences update: 'all' (Algorithm 2 'update SI'), 'last_layer' or
+    'output_bias'."""
 
     def __post_init__(self) -> None:
         check_choice("loss", self.loss, SI_LOSSES)
@@ -113,7 +131,25 @@ class PESIConfig:
         check_int("batch_size", self.batch_size, 1)
         check_int("n_candidates", self.n_candidates, 2)
         check_int("history", self.history, 1)
+        check_choice("candidate_sampling", self.candidate_sampling, CANDIDATE_SAMPLING)
         check_range("query_uniform_mix", self.query_uniform_mix, 1e-9, 1.0)
+        check_choice("pr_domain", self.pr_domain, PR_DOMAINS)
+        check_choice("fine_tuned", self.fine_tuned, FINE_TUNED)
+
+
+def fine_tuned_parameters(model: SIModel, fine_tuned: str) -> list[torch.nn.Parameter]:
+    """The parameters of `model` that preferences update; the others are frozen (requires_grad off)."""
+    check_choice("fine_tuned", fine_tuned, FINE_TUNED)
+    output = model.net[-1]
+    chosen = {
+        "all": list(model.parameters()),
+        "last_layer": list(output.parameters()),
+        "output_bias": [output.bias],
+    }[fine_tuned]
+    ids = {id(p) for p in chosen}
+    for parameter in model.parameters():
+        parameter.requires_grad_(id(parameter) in ids)
+    return chosen
 
 
 class PESILearner:
@@ -144,7 +180,9 @@ class PESILearner:
         # Plain gradient steps: the update is then proportional to p, the encourage percentage 'controlling
         # the update size' (section 4). Adam would rescale every step to about the learning rate, so that p
         # hardly mattered and even a zero gradient's rounding noise moved the model.
-        self.optimiser = torch.optim.SGD(self.model.parameters(), lr=self.config.learning_rate)
+        self.optimiser = torch.optim.SGD(
+            fine_tuned_parameters(self.model, self.config.fine_tuned), lr=self.config.learning_rate
+        )
         # The preference buffer D: one entry per answered query.
         self._features: list[np.ndarray] = []
         self._indices: list[np.ndarray] = []
@@ -174,8 +212,9 @@ class PESILearner:
     def ask(self, observe: Callable[[float, np.random.Generator], np.ndarray]) -> PreferenceQuery:
         """Algorithm 2, l.2-3: execute pi^l with phi_0 .. phi_{N-1} sampled from Phi, sample a slice tau.
 
-        The candidates are distinct, drawn from SI's belief Pr(phi | tau) at the previous query's slice
-        (uniform before the first), mixed with a little uniform. tau is h consecutive periods at a
+        The candidates are distinct, drawn uniformly from Phi or (`candidate_sampling='belief'`) from SI's
+        Pr(phi | tau) at the previous query's slice (uniform before the first), mixed with a little
+        uniform. tau is h consecutive periods at a
         uniformly random place of a uniformly chosen candidate's clip: `observe(phi, rng)` executes pi^l
         with phi (every candidate from the same start) and returns that slice, flattened, its place drawn
         with `rng`.
@@ -197,6 +236,8 @@ class PESILearner:
 
     def _query_distribution(self) -> np.ndarray:
         size = self.candidates.size
+        if self.config.candidate_sampling == "uniform":
+            return np.full(size, 1.0 / size)
         if self._last_slice is not None:
             probs = self.distribution(self._last_slice)
         else:
@@ -237,13 +278,13 @@ class PESILearner:
     def _update_si(self, batch: np.ndarray) -> float:
         """One gradient step of SI on the buffer entries `batch` with the configured loss; returns it."""
         features, indices, labels = self._batch_tensors(batch)
-        log_probs = queried_log_probs(self.model(features), indices)
+        queried = log_probs(self.model(features), indices, self.config.pr_domain)
         if self.config.loss == "standard":
-            loss = standard_ce_loss(log_probs, labels)  # A.8 ablation
+            loss = standard_ce_loss(queried, labels)  # A.8 ablation
         elif self.config.n_candidates == 2:
-            loss = pesi_loss(log_probs, labels[:, 0], self.config.encourage_percentage)  # Eq. 2
+            loss = pesi_loss(queried, labels[:, 0], self.config.encourage_percentage)  # Eq. 2
         else:
-            loss = pesi_loss_n(log_probs, labels, self.config.encourage_percentage)  # Eq. 3
+            loss = pesi_loss_n(queried, labels, self.config.encourage_percentage)  # Eq. 3
         self.optimiser.zero_grad()
         loss.backward()
         self.optimiser.step()

@@ -1,0 +1,126 @@
+"""How much the SI conclusions hang on choices the paper leaves open (notebook 08).
+
+Each *variant* changes one reading of the paper from the default (the paper's reading where it speaks):
+what Algorithm 4's mean squared loss is taken over, how Algorithm 2 samples the candidates, over what Pr
+of Eq. 2 is a distribution, which parameters of SI preferences fine-tune, the fine-tuning step size, and
+CO-PESI's classifier schedule. The previous design of this study (expectation-only pretraining,
+candidates from SI's belief, classifiers reset every co-teaching step) is kept as one more variant.
+
+For every variant and environment of the grid the study runs OSI, PESI with perfect preferences and, for
+the variants that can change the co-teaching comparison, PESI and CO-PESI at `noise`; every comparison is
+paired (same truth, seed, teacher draws and evaluation episodes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pandas as pd
+
+from hipref.experiments.sysid import DOMAINS, FineTuning, Protocol, SIRun, run_si
+from hipref.sweep import run_sweep
+from hipref.validation import check_choice, check_range
+
+VARIANTS: dict[str, tuple[str, FineTuning]] = {
+    "default": ("brier", FineTuning()),
+    "pretrain_expectation": ("expectation", FineTuning()),
+    "pretrain_brier_expectation": ("brier_expectation", FineTuning()),
+    "belief_candidates": ("brier", FineTuning(candidate_sampling="belief")),
+    "pr_over_phi": ("brier", FineTuning(pr_domain="all")),
+    "last_layer": ("brier", FineTuning(fine_tuned="last_layer")),
+    "output_bias": ("brier", FineTuning(fine_tuned="output_bias")),
+    "learning_rate_0.001": ("brier", FineTuning(learning_rate=1e-3)),
+    "learning_rate_0.05": ("brier", FineTuning(learning_rate=5e-2)),
+    "reset_every_step": ("brier", FineTuning(coteaching_schedule="reset_every_step")),
+    "previous_design": (
+        "expectation",
+        FineTuning(candidate_sampling="belief", coteaching_schedule="reset_every_step"),
+    ),
+}
+"""Variant name -> (Algorithm 4's loss, how preferences fine-tune SI)."""
+
+COTEACHING_VARIANTS: tuple[str, ...] = ("default", "belief_candidates", "reset_every_step", "previous_design")
+"""The variants whose CO-PESI - PESI comparison is run: the classifier schedules, and the candidate
+sampling that decides which pairs the classifiers see."""
+
+
+@dataclass(frozen=True)
+class SensitivityConfig(Protocol):
+    """The variants x domains x environments of notebook 08."""
+
+    variants: tuple[str, ...] = ("default", "pretrain_expectation", "reset_every_step", "previous_design")
+    """Which variants to run, each a key of VARIANTS (the full profile runs them all)."""
+    domains: tuple[str, ...] = ("wiping", "pushing")
+    """Domains to run."""
+    noise: float = 0.2
+    """Fraction of flipped preferences of the co-teaching comparison, in (0, 0.5)."""
+    heights: tuple[float, ...] = (0.7,)
+    """True desk heights in m of the wiping environments, each in [0.5, 0.9]."""
+    masses: tuple[float, ...] = (14.0,)
+    """True cube masses in kg of the pushing environments, each in [8, 20]."""
+    episodes: int = 33
+    """Learning episodes per run, at least 1."""
+    eval_episodes: int = 5
+    """Evaluation episodes per evaluation (section 5: 10)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.variants or not self.domains:
+            raise ValueError(
+                f"variants and domains must be non-empty, got {self.variants!r} and {self.domains!r}"
+            )
+        for variant in self.variants:
+            check_choice("variants", variant, tuple(VARIANTS))
+        for domain in self.domains:
+            check_choice("domains", domain, tuple(DOMAINS))
+        check_range("noise", self.noise, 1e-9, 0.5 - 1e-9)
+
+
+def variant_protocol(config: SensitivityConfig, variant: str) -> tuple[Protocol, FineTuning]:
+    """The protocol (its pretraining loss set by the variant) and the fine-tuning of one variant."""
+    loss, tuning = VARIANTS[variant]
+    protocol = Protocol(
+        heights=config.heights,
+        masses=config.masses,
+        seeds=config.seeds,
+        episodes=config.episodes,
+        eval_every=config.eval_every,
+        eval_episodes=config.eval_episodes,
+        eval_slices=config.eval_slices,
+        n_trajectories=config.n_trajectories,
+        pretrain_steps=config.pretrain_steps,
+        pretrain_loss=loss,
+    )
+    return protocol, tuning
+
+
+def cells(config: SensitivityConfig, variant: str) -> list[SIRun]:
+    """The runs of one variant; runs equal across variants (OSI, or PESI where only the classifier schedule
+    differs) are cache hits after the first."""
+    protocol, tuning = variant_protocol(config, variant)
+    settings: list[tuple[str, float]] = [("osi", 0.0), ("pesi", 0.0)]
+    if variant in COTEACHING_VARIANTS:
+        settings += [("pesi", config.noise), ("co_pesi", config.noise)]
+    return [
+        protocol.run_cell(domain, method, truth, seed, fine_tuning=tuning, noise=noise)
+        for domain in config.domains
+        for method, noise in settings
+        for truth, seed in protocol.environments(domain)
+    ]
+
+
+def run(config: SensitivityConfig) -> pd.DataFrame:
+    """Tidy rows of every run (see `run_si`) with a `variant` column.
+
+    Every distinct run of every variant goes into one sweep (one pool of workers, each run once); the rows
+    of each variant are then read back from the sweep's cache."""
+    for variant in config.variants:
+        variant_protocol(config, variant)[0].pretrain(config.domains)
+    runs = {variant: cells(config, variant) for variant in config.variants}
+    distinct = list(dict.fromkeys(run for variant_runs in runs.values() for run in variant_runs))
+    run_sweep(run_si, distinct, desc="SI sensitivity")
+    frames = [
+        run_sweep(run_si, variant_runs, desc=variant).assign(variant=variant)
+        for variant, variant_runs in runs.items()
+    ]
+    return pd.concat(frames, ignore_index=True)
