@@ -7,6 +7,10 @@ system-identification model whose estimate parameterises the low-level force con
 import ctypes.util
 import os
 
+# torch chooses its kernels by the CPU it runs on; this import pins them before torch first computes, so
+# that the rows are the same on every x86-64 CPU with AVX2 (hipref.numerics says which and why).
+import hipref.numerics
+
 # Rendering is headless through EGL unless the user chose a backend. MuJoCo loads the chosen backend's
 # library when it is first imported, so where EGL is missing rendering is disabled instead, and the
 # still frames are skipped with a message rather than the import failing.

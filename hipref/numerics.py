@@ -1,0 +1,69 @@
+"""The same seed gives byte-identical rows on every x86-64 CPU with AVX2, not only on the one that ran it.
+
+Two libraries inside torch choose their kernels by the CPU they run on, and the kernels round differently:
+
+- ATen, torch's own kernels (tanh, softmax, the sums of a reduction, Adam's update), runs AVX-512, AVX2 or
+  plain code by the CPU's instruction sets; the vector width changes the order in which a reduction adds.
+  `ATEN_CPU_CAPABILITY=avx2` gives every CPU of the study's kind the AVX2 kernels.
+- MKL, which multiplies the matrices of every `nn.Linear` (the SI model, the flat policy of pretrained
+  COACH), chooses its kernels by vendor and instruction set, and outside its reproducible mode also by the
+  operands' alignment in memory, which follows the heap's history. Its `COMPATIBLE` branch is the one code
+  path that Intel and AMD processors both run (the AVX2 branch exists only on Intel's), and in it the
+  alignment no longer matters: `MKL_CBWR=COMPATIBLE`.
+
+One bit of difference in SI's weights moves every estimate after it, and one action of the flat policy
+sampled differently changes the rest of its run, so unpinned the rows of notebooks 01, 04 and 06 differed
+between two machines of the same kind.
+
+Measured not to change a row, so left alone: MuJoCo (compiled for AVX, with no dispatch at run time), the
+numba controllers (no fastmath, so no fused multiply-add and no reordering, whatever CPU they are compiled
+for), oneDNN (not on the study's path) and numpy as the study uses it (sums, 3 x 3 products). numpy does
+dispatch elsewhere: its float64 exp and log have AVX-512 versions that differ in the last bit (tabular
+COACH's softmax takes exp: an action sampled from it changes only if a uniform draw falls inside that
+bit), and its OpenBLAS runs AVX-512 kernels for larger products and solves. Both read their setting when
+numpy is loaded, which a notebook does before it imports hipref, so they are not pinned here: pinned in
+the sweep's workers only, a run would differ between a pool and the notebook's own process.
+tests/test_cross_cpu.py computes its reference with them at AVX2 too, so a row of its cells that comes to
+depend on them is caught.
+
+Pinned, the torch parts cost more CPU time: Algorithm 4's pretraining (3000 Adam steps), built once per
+domain and cached, takes about 10 s instead of 6 s; a learning run, dominated by the physics, the same.
+
+Both settings are read when torch first computes, so they are set when this module is imported, which
+`import hipref` does before anything else; sweep workers are spawned processes that import `hipref` first,
+and inherit them. A value already in the environment is kept, so a person can still choose another setting
+on purpose.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+
+PINNED: dict[str, str] = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "COMPATIBLE"}
+"""The environment settings that make torch compute the same bits on every x86-64 CPU with AVX2."""
+
+
+def pin_cpu_dispatch() -> None:
+    """Set `PINNED` where the environment does not already say otherwise, and warn if torch has computed
+    already: its kernels are then this CPU's, and the rows may differ on another machine."""
+    for name, value in PINNED.items():
+        os.environ.setdefault(name, value)
+    torch = sys.modules.get("torch")
+    if torch is None:
+        return
+    # Reading the capability fixes it; when torch has not computed yet it is fixed here, under PINNED.
+    capability = torch.backends.cpu.get_cpu_capability()
+    wanted = os.environ["ATEN_CPU_CAPABILITY"]
+    if capability.lower() != wanted.lower():
+        warnings.warn(
+            f"torch computes with its {capability} kernels, not the {wanted} ones hipref asks for (torch was "
+            "used before hipref was imported, or this CPU lacks them): the rows may differ from those of "
+            "another machine. Import hipref before using torch.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+
+
+pin_cpu_dispatch()
