@@ -19,6 +19,7 @@ from hipref.experiments.r2_noise import R2Config
 from hipref.experiments.r3_copesi import R3Config
 from hipref.notebook import check_parameters, check_value, config_from, config_from_parameters
 from hipref.results import RESULT_FOLDERS, check_writable
+from tests.test_notebooks import first_code_cell
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
@@ -245,9 +246,7 @@ CHECKS = {"check_parameters", "config_from", "config_from_parameters", "check_wr
 
 @pytest.mark.parametrize("notebook", NOTEBOOKS, ids=lambda p: p.stem)
 def test_every_notebook_checks_parameters_and_results_directory_before_anything_else(notebook: Path) -> None:
-    cells = json.loads(notebook.read_text())["cells"]
-    (at,) = [i for i, c in enumerate(cells) if "parameters" in c.get("metadata", {}).get("tags", [])]
-    first = next(c for c in cells[at + 1 :] if c["cell_type"] == "code")
+    first = {"source": first_code_cell(notebook)}
     body = [
         n for n in ast.parse("".join(first["source"])).body if not isinstance(n, ast.Import | ast.ImportFrom)
     ]

@@ -46,7 +46,12 @@ def typed_parameters(notebook: Path) -> dict[str, tuple[str, object]]:
 def first_code_cell(notebook: Path) -> str:
     cells = json.loads(notebook.read_text())["cells"]
     (at,) = [i for i, c in enumerate(cells) if "parameters" in c.get("metadata", {}).get("tags", [])]
-    following = [c for c in cells[at + 1 :] if c["cell_type"] == "code"]
+    # papermill puts the overrides of a run in a cell of its own, right after the parameters cell.
+    following = [
+        c
+        for c in cells[at + 1 :]
+        if c["cell_type"] == "code" and "injected-parameters" not in c.get("metadata", {}).get("tags", [])
+    ]
     return "".join(following[0]["source"])
 
 
