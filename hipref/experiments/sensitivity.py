@@ -46,7 +46,8 @@ sampling that decides which pairs the classifiers see."""
 
 @dataclass(frozen=True)
 class SensitivityConfig(Protocol):
-    """The variants x domains x environments of notebook 08."""
+    """The variants x domains x environments of notebook 08. The protocol's `pretrain_loss` and
+    `learning_rate` are not read: each variant sets its own (VARIANTS)."""
 
     variants: tuple[str, ...] = ("default", "pretrain_expectation", "reset_every_step", "previous_design")
     """Which variants to run, each a key of VARIANTS (the full profile runs them all)."""

@@ -519,12 +519,6 @@ def tidy_rows(rows: list[tuple[int, str, float]], **keys: Any) -> pd.DataFrame:
     return frame[[*TIDY_COLUMNS, *extra]]
 
 
-def even_grid(candidates: CandidateSet, count: int) -> tuple[float, ...]:
-    """`count` truths at the centres of equal bins of the range, rounded to the candidate resolution."""
-    centres = candidates.low + (np.arange(count) + 0.5) * (candidates.high - candidates.low) / count
-    return tuple(float(round(c / candidates.resolution) * candidates.resolution) for c in centres)
-
-
 @dataclass(frozen=True)
 class Protocol:
     """What the SI studies share: a fixed grid of true parameters crossed with seeds, the paper's
