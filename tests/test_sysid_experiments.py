@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from hipref.experiments import sysid
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.r2_noise import R2Config
 from hipref.experiments.sysid import (
@@ -56,6 +57,33 @@ def test_co_pesi_reports_its_filter_against_the_recorded_flips():
     assert quality.value.between(0.0, 1.0).all()
     assert "filter_precision" not in set(run_si(SIRun("pushing", "pesi", 14.0, noise=0.3, episodes=2,
                                                       eval_every=2, eval_episodes=1, data=TINY)).metric)
+
+
+@pytest.mark.parametrize(
+    ("domain", "truth", "method", "noise"),
+    [("wiping", 0.74, "co_pesi", 0.3), ("pushing", 15.5, "pesi_ce", 0.1)],
+)
+def test_replayed_learning_clips_give_the_rows_of_executing_them(domain, truth, method, noise, monkeypatch):
+    cell = SIRun(domain, method, truth, noise=noise, seed=1, episodes=6, eval_every=3, eval_episodes=1,
+                 data=TINY)
+    # A PESI run at another noise level executes (and caches) the clips this run then replays.
+    run_si(SIRun(domain, "pesi", truth, noise=0.0, seed=1, episodes=6, eval_every=3, eval_episodes=1,
+                 data=TINY))
+    replayed = run_si(cell)
+    executed = []
+    monkeypatch.setattr(sysid, "learning_clips", lambda *args: executed.append(args))
+    monkeypatch.setattr(sysid.Clip, "replay", lambda *args: pytest.fail("a clip was replayed"))
+    pd.testing.assert_frame_equal(replayed, run_si(cell))
+    assert len(executed) == 1
+
+
+def test_a_replayed_clip_refuses_a_query_it_was_not_executed_for():
+    world = World("wiping")
+    layout = world.sample_layout(np.random.default_rng(0))
+    clip = world.clip(0.7, 0.6, layout, 3, np.random.default_rng(1))
+    np.testing.assert_array_equal(clip.replay(0.6, 3, np.random.default_rng(1)), clip.tau)
+    with pytest.raises(RuntimeError, match="depend on what the learner has learnt"):
+        clip.replay(0.62, 3, np.random.default_rng(1))
 
 
 def test_every_method_meets_the_same_evaluation_episodes():

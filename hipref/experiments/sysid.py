@@ -12,11 +12,13 @@ One run (`run_si`) follows the paper's protocol for one environment with a fixed
   frozen and 10 evaluation episodes are run: SI's absolute error on a fresh slice (`param_error`) and the
   success of the task executed with SI's estimate (`success_rate`).
 
-Which estimate drives the slices. In a learning episode the candidates are drawn from SI's belief at the
-previous episode's slice and tau is a slice of the clip pi^l executes with one of them, every candidate's
-clip starting from the same layout (PESILearner.ask, World.clip_slice). Every slice SI is
-evaluated on, and every slice of Algorithm 4's data, comes from a probing rollout that pi^l executes with
-an estimate drawn uniformly from the range: OSI is evaluated on the inputs it was trained for.
+Which estimate drives the slices. In a learning episode the candidates are drawn uniformly from Phi (or,
+as an option, from SI's belief) and tau is a slice of the clip pi^l executes with one of them, every
+candidate's clip starting from the same layout (PESILearner.ask, World.clip). Uniformly drawn queries do
+not depend on what SI has learnt, so one environment's clips are executed once and replayed by every
+method and noise level (`learning_clips`). Every slice SI is evaluated on, and every slice of Algorithm 4's
+data, comes from a probing rollout that pi^l executes with an estimate drawn uniformly from the range: OSI
+is evaluated on the inputs it was trained for.
 """
 
 from __future__ import annotations
@@ -182,21 +184,57 @@ class World:
         only the periods up to tau's end are simulated; physics draws no random numbers, so they are the
         whole clip's, bit for bit. A push ends when the cube comes to rest, so it is executed whole.
         """
+        return self.clip(true_parameter, estimate, layout, history, rng).tau
+
+    def clip(
+        self,
+        true_parameter: float,
+        estimate: float,
+        layout: tuple[np.ndarray, np.ndarray],
+        history: int,
+        rng: np.random.Generator,
+    ) -> Clip:
+        """`clip_slice` with the clip's length and the slice's place, so that the draw can be replayed."""
         start, goal = layout
         if self.spec.name == "wiping":
             self.task.reset(true_parameter, (float(start[0]), float(start[1])))
-            first = _slice_start(self.task.stroke_periods(goal), history, rng)
+            periods = self.task.stroke_periods(goal)
+            first = _slice_start(periods, history, rng)
             features = self.task.stroke(goal, estimate, periods=first + history).features
         else:
             features, _ = self.rollout(true_parameter, estimate, layout)
-            first = _slice_start(len(features), history, rng)
-        return features[first : first + history].reshape(-1)
+            periods = len(features)
+            first = _slice_start(periods, history, rng)
+        return Clip(estimate, periods, first, features[first : first + history].reshape(-1))
 
     def probe_slice(self, true_parameter: float, history: int, rng: np.random.Generator) -> np.ndarray:
         """tau of a probing rollout: pi^l executed with a uniformly random estimate from a random layout."""
         return self.clip_slice(
             true_parameter, self.random_estimate(rng), self.sample_layout(rng), history, rng
         )
+
+
+class Clip(NamedTuple):
+    """What a learning episode observes of the clip pi^l executes with one candidate: its slice tau."""
+
+    estimate: float
+    """The candidate pi^l was given."""
+    periods: int
+    """The clip's length in control periods, over which the slice's place was drawn."""
+    first: int
+    """The slice's first period."""
+    tau: np.ndarray
+    """The slice, flattened (the SI input)."""
+
+    def replay(self, estimate: float, history: int, rng: np.random.Generator) -> np.ndarray:
+        """tau again, drawing the slice's place from `rng` as the execution did, without the physics."""
+        first = _slice_start(self.periods, history, rng)
+        if estimate != self.estimate or first != self.first:
+            raise RuntimeError(
+                f"a replayed clip was asked for estimate {estimate} at period {first}, but was executed "
+                f"with {self.estimate} at {self.first}: the queries depend on what the learner has learnt"
+            )
+        return self.tau
 
 
 def _slice_start(periods: int, history: int, rng: np.random.Generator) -> int:
@@ -439,6 +477,59 @@ def evaluation_episodes(world: World, spec: EvaluationSpec) -> list[list[Episode
     return cached_artefact(f"si_evaluation_{spec.domain}", spec, build, expect=Expect(list, complete))
 
 
+@dataclass(frozen=True)
+class LearningSpec:
+    """What the clips of a run's learning episodes depend on when its candidates are drawn uniformly: not
+    the method, the noise level or how SI is fine-tuned."""
+
+    domain: str
+    ground_truth: float
+    seed: int
+    """The run's seed; with the ground truth it seeds the learner's queries and the layouts."""
+    episodes: int
+    n_candidates: int
+    history: int
+
+
+def learning_clips(world: World, spec: LearningSpec, model: SIModel) -> list[Clip]:
+    """Per learning episode, the clip its query observes, executed once per environment (cached).
+
+    With candidates drawn uniformly from Phi (Algorithm 2), what a learner asks never depends on what SI has
+    learnt or on the answers: the candidates, the layout and the slice's place come from the run's own
+    streams. So every method, noise level and fine-tuning of one environment executes the same clips, and
+    they are executed once, by a learner that only asks; runs replay them (`Clip.replay`) with their own
+    learners, whose queries are checked against them. The rows are those of executing every run's clips.
+    """
+
+    def build() -> list[Clip]:
+        truth, h = spec.ground_truth, spec.history
+        _, learner_seq, learn_seq, _ = run_streams(spec.seed, truth)
+        config = PESIConfig(n_candidates=spec.n_candidates, history=spec.history)
+        asker = PESILearner(model, config, learner_seed(learner_seq))
+        learn_rng = np.random.default_rng(learn_seq)
+        clips: list[Clip] = []
+
+        for _ in range(spec.episodes):
+            layout = world.sample_layout(learn_rng)
+            asker.ask(lambda phi, rng, layout=layout: _record(clips, world.clip(truth, phi, layout, h, rng)))
+        return clips
+
+    def complete(clips: list[Clip]) -> bool:
+        return len(clips) == spec.episodes and all(isinstance(c, Clip) for c in clips)
+
+    return cached_artefact(f"si_learning_{spec.domain}", spec, build, expect=Expect(list, complete))
+
+
+def _record(clips: list[Clip], clip: Clip) -> np.ndarray:
+    clips.append(clip)
+    return clip.tau
+
+
+def learner_seed(learner_seq: np.random.SeedSequence) -> int:
+    """The learner's integer seed from its stream of `run_streams`."""
+    return int(learner_seq.generate_state(1)[0])
+
+
 def evaluate(
     world: World, model: SIModel, episodes: list[Episode], ground_truth: float
 ) -> dict[str, float]:
@@ -477,7 +568,7 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         truth = cell.ground_truth
         world = World(cell.domain)
         teacher = ScriptedPreferenceTeacher(truth, cell.noise, np.random.default_rng(teacher_seq))
-        learner = make_learner(cell, model, int(learner_seq.generate_state(1)[0]))
+        learner = make_learner(cell, model, learner_seed(learner_seq))
         learn_rng = np.random.default_rng(learn_seq)
         h = cell.data.history
         n_checkpoints = cell.episodes // cell.eval_every + 1
@@ -485,6 +576,10 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             cell.domain, truth, cell.seed, n_checkpoints, cell.eval_episodes, cell.eval_slices, h
         )
         checkpoints = evaluation_episodes(world, spec)
+        clips = None
+        if learner is not None and cell.fine_tuning.candidate_sampling == "uniform":
+            learning = LearningSpec(cell.domain, truth, cell.seed, cell.episodes, cell.n_candidates, h)
+            clips = learning_clips(world, learning, model)
         rows: list[tuple[int, str, float]] = []
         for episode in range(cell.episodes + 1):
             if episode % cell.eval_every == 0:
@@ -498,8 +593,13 @@ def run_si(cell: SIRun) -> pd.DataFrame:
                 continue
             # Algorithm 2: execute pi^l with the candidates from one layout, sample a slice tau, ask for a
             # preference y, update SI (Eq. 2/3).
-            layout = world.sample_layout(learn_rng)
-            query = learner.ask(lambda phi, rng, layout=layout: world.clip_slice(truth, phi, layout, h, rng))
+            if clips is not None:
+                query = learner.ask(lambda phi, rng, clip=clips[episode]: clip.replay(phi, h, rng))
+            else:
+                layout = world.sample_layout(learn_rng)
+                query = learner.ask(
+                    lambda phi, rng, layout=layout: world.clip_slice(truth, phi, layout, h, rng)
+                )
             learner.tell(query, teacher.answer(query))
     return tidy_rows(
         rows,
