@@ -42,3 +42,40 @@ def check_vector(name: str, value: Sequence[float], length: int, *, positive: bo
     if not ok:
         kind = "positive finite numbers" if positive else "finite numbers"
         raise ValueError(f"{name} must be {length} {kind}, got {value!r}")
+
+
+def check_parameter(name: str, value: float, bounds: tuple[float, float]) -> float:
+    """The unknown parameter (or an estimate of it) must be finite and inside its range."""
+    check_range(name, value, bounds[0], bounds[1])
+    return float(value)
+
+
+def check_interval(
+    name: str,
+    value: object,
+    low: float,
+    high: float,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+    point: bool = False,
+    unit: str = "",
+    why: str = "",
+) -> None:
+    """Raise ValueError naming the field, its allowed values and the value given unless `value` is a pair
+    (a, b) of finite numbers ordered a < b (a <= b when `point`) inside [low, high] (bounds excluded when
+    `low_open`, `high_open`; an infinite bound is no bound)."""
+    try:
+        a, b = (float(v) for v in value)  # type: ignore[attr-defined]
+        ok = math.isfinite(a) and math.isfinite(b) and (a <= b if point else a < b)
+        ok = ok and (a > low if low_open else a >= low) and (b < high if high_open else b <= high)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        bounds = "low " + ("<=" if point else "<") + " high"
+        if math.isfinite(low):
+            bounds = f"{low:g} {'<' if low_open else '<='} {bounds}"
+        if math.isfinite(high):
+            bounds = f"{bounds} {'<' if high_open else '<='} {high:g}"
+        unit = f" in {unit}" if unit else ""
+        raise ValueError(f"{name} must be (low, high){unit} with {bounds}{why}, got {value!r}")

@@ -6,8 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from hipref.control.arm import START_POSTURE
 from hipref.envs.gridworld import DOWN, LEFT, RIGHT, UP, WipingGrid
-from hipref.envs.wiping import START_POSTURE, WipingTask
+from hipref.envs.wiping import WipingTask
 
 
 @pytest.fixture(scope="module")

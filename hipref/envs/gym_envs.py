@@ -14,8 +14,8 @@ import gymnasium as gym
 import numpy as np
 
 from hipref.envs.pushing import PushingConfig, PushingTask
-from hipref.envs.wiping import WipingConfig, WipingTask, check_parameter
-from hipref.validation import check_int
+from hipref.envs.wiping import WipingConfig, WipingTask
+from hipref.validation import check_int, check_parameter
 
 RESET_OPTIONS = frozenset({"param"})
 

@@ -14,94 +14,12 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.tool import ControllerConfig, ToolController
 from hipref.sim.config import SceneConfig
 from hipref.sim.scene import Scene, make_scene
-from hipref.validation import check_range
-
-START_POSTURE = np.array([0.0, -1.3, 1.8, -2.07, -1.57, 0.0])
-"""Joint seed for inverse kinematics at reset: elbow up, tool down, facing the desk."""
-
-
-class PostureSeed:
-    """Inverse-kinematics seeds on START_POSTURE's branch for a tool pose above any point of the desk.
-
-    The shoulder is turned towards the target and the last wrist joint back by the same angle plus the
-    tool's yaw, so the damped least-squares iteration starts close to the elbow-up, tool-down solution: from
-    START_POSTURE itself it converged, at the desk corner next to the base, onto wound-up joints far outside
-    their limits."""
-
-    def __init__(self, scene: Scene) -> None:
-        scratch = mujoco.MjData(scene.model)
-        scratch.qpos[scene.arm_qpos] = START_POSTURE
-        mujoco.mj_kinematics(scene.model, scratch)
-        tip = scratch.site_xpos[scene.tool_tip]
-        self.base = np.asarray(scene.config.base_pos[:2], dtype=float)
-        self.start_bearing = math.atan2(tip[1] - self.base[1], tip[0] - self.base[0])
-        """Bearing from the base of the tool tip at START_POSTURE."""
-
-    def pan(self, tool_xy: np.ndarray) -> float:
-        """The shoulder turn in rad that points the arm at `tool_xy`."""
-        return math.atan2(tool_xy[1] - self.base[1], tool_xy[0] - self.base[0]) - self.start_bearing
-
-    def seed(self, tool_xy: np.ndarray, yaw: float = 0.0) -> np.ndarray:
-        """The seed for a tool tip at `tool_xy` turned by `yaw` about the vertical."""
-        pan = self.pan(tool_xy)
-        seed = START_POSTURE.copy()
-        seed[0] += pan
-        seed[5] += pan - yaw
-        return seed
-
-
-def wrap_joints(q: np.ndarray) -> np.ndarray:
-    """Joint positions wrapped to [-pi, pi): the same pose, as inverse kinematics may return it wound up."""
-    return (q + math.pi) % (2 * math.pi) - math.pi
-
-
-def reached(scene: Scene, q: np.ndarray, residual: float, tolerance: float) -> bool:
-    """Whether inverse kinematics put the tool within `tolerance` m of its target (`residual`) with every
-    joint of `q` inside its range."""
-    low, high = scene.model.jnt_range[scene.arm_qpos].T
-    return residual <= tolerance and bool(np.all(q >= low)) and bool(np.all(q <= high))
-
-
-def check_parameter(name: str, value: float, bounds: tuple[float, float]) -> float:
-    """The unknown parameter (or an estimate of it) must be finite and inside its range."""
-    check_range(name, value, bounds[0], bounds[1])
-    return float(value)
-
-
-def check_interval(
-    name: str,
-    value: object,
-    low: float,
-    high: float,
-    *,
-    low_open: bool = False,
-    high_open: bool = False,
-    point: bool = False,
-    unit: str = "",
-    why: str = "",
-) -> None:
-    """Raise ValueError naming the field, its allowed values and the value given unless `value` is a pair
-    (a, b) of finite numbers ordered a < b (a <= b when `point`) inside [low, high] (bounds excluded when
-    `low_open`, `high_open`; an infinite bound is no bound)."""
-    try:
-        a, b = (float(v) for v in value)  # type: ignore[attr-defined]
-        ok = math.isfinite(a) and math.isfinite(b) and (a <= b if point else a < b)
-        ok = ok and (a > low if low_open else a >= low) and (b < high if high_open else b <= high)
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        bounds = "low " + ("<=" if point else "<") + " high"
-        if math.isfinite(low):
-            bounds = f"{low:g} {'<' if low_open else '<='} {bounds}"
-        if math.isfinite(high):
-            bounds = f"{bounds} {'<' if high_open else '<='} {high:g}"
-        unit = f" in {unit}" if unit else ""
-        raise ValueError(f"{name} must be (low, high){unit} with {bounds}{why}, got {value!r}")
-
+from hipref.validation import check_interval, check_parameter, check_range
 
 HOVER_CLEARANCE = 0.03
 """Least height in m of the tool tip at reset above the highest desk of the range."""
