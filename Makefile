@@ -67,4 +67,5 @@ lab: install
 	$(VENV)/bin/jupyter lab notebooks
 
 bench: install
-	$(PY) -m hipref.bench
+	$(PY) -m hipref.bench.physics
+	$(PY) -m hipref.bench.sweep

@@ -37,9 +37,11 @@ on purpose.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import warnings
+from collections.abc import Iterator
 
 PINNED: dict[str, str] = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "COMPATIBLE"}
 """The environment settings that make torch compute the same bits on every x86-64 CPU with AVX2."""
@@ -64,6 +66,23 @@ def pin_cpu_dispatch() -> None:
             RuntimeWarning,
             stacklevel=2,
         )
+
+
+@contextlib.contextmanager
+def one_thread() -> Iterator[None]:
+    """torch on one thread for the duration of a run, the caller's setting restored after (a run may
+    execute in a person's kernel): parallel runs do not oversubscribe the cores, and a reduction adds in
+    one order whatever the machine. A no-op while torch is not loaded."""
+    torch = sys.modules.get("torch")
+    if torch is None:
+        yield
+        return
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 pin_cpu_dispatch()

@@ -45,6 +45,24 @@ METRICS: tuple[str, ...] = (
 )
 """The metric names a results frame may use; a study that measures something new adds it here."""
 
+def tidy_rows(
+    rows: Iterable[Sequence[object]],
+    varying: Sequence[str] = ("episode", "metric", "value"),
+    **constant: object,
+) -> pd.DataFrame:
+    """Rows of the results contract: each of `rows` gives the `varying` columns, `constant` the columns every
+    row shares. The tidy columns (TIDY_COLUMNS) come first, then the others: the varying, then the
+    constant ones, in the order given."""
+    import pandas as pd
+
+    frame = pd.DataFrame(list(rows), columns=list(varying)).assign(**constant)
+    missing = [column for column in TIDY_COLUMNS if column not in frame.columns]
+    if missing:
+        raise ValueError(f"rows lack the tidy column(s) {missing}; tidy columns are {TIDY_COLUMNS}")
+    extra = [column for column in [*varying, *constant] if column not in TIDY_COLUMNS]
+    return frame[[*TIDY_COLUMNS, *extra]]
+
+
 HOLDS = ("yes", "no", "partly")
 """Verdicts a claim can get in `results/claims.md`."""
 

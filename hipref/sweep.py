@@ -7,7 +7,7 @@ rows in the order of the cells. Because every cell seeds itself and runs on one 
 byte-identical whichever backend and however many workers.
 
 Each finished cell is pickled under the cache directory with a key hashing the function, the config and
-the package's source (`code_version`), so an interrupted sweep resumes where it stopped and a changed
+the code the rows depend on (`code_version`), so an interrupted sweep resumes where it stopped and a changed
 algorithm never reuses stale rows. `cached_artefact` does the same for expensive shared objects (an SI
 pre-training dataset, a pretrained model, demonstrations).
 
@@ -25,6 +25,7 @@ This module imports only the standard library (and tqdm) at load time: a spawned
 
 from __future__ import annotations
 
+import ast
 import collections
 import contextlib
 import dataclasses
@@ -49,6 +50,7 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar
 from tqdm.auto import tqdm
 
 import hipref
+from hipref.numerics import one_thread
 from hipref.results import TIDY_COLUMNS, repo_root, write_bytes
 
 if TYPE_CHECKING:
@@ -64,6 +66,10 @@ NO_CACHE: Literal[False] = False
 
 _THREAD_ENV = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 _ARTEFACTS: dict[str, Any] = {}
+
+_SWEEP_CACHE_DIR: CacheDir = None
+"""While a sweep's cell runs in this process, the sweep's cache directory: the artefacts the cell builds
+(`cached_artefact` without a `cache_dir`) are cached there too."""
 
 _PARENT_POLL_SECONDS = 1.0
 """How often a worker checks that its parent still lives, besides being woken when the parent's end of
@@ -87,19 +93,47 @@ class SweepError(RuntimeError):
         super().__init__("\n".join(parts))
 
 
+NOT_IN_ROWS: tuple[str, ...] = ("bench", "notebook.py", "plots.py", "verdicts.py")
+"""The package's modules no row depends on (benchmarks, notebook parameters, figures, verdicts): editing
+them keeps every cached cell."""
+
+
 @functools.cache
 def code_version() -> str:
-    """`hipref.__version__` plus a hash of every `.py` file of the package, computed once per process.
+    """`hipref.__version__` plus a hash of the code every row may depend on, computed once per process.
 
-    Any edit to the package invalidates every cached cell: coarse, but a cached result can never come
-    from code other than the code that would compute it now.
+    The hash covers each `.py` file of the package but those of NOT_IN_ROWS, as its syntax tree without
+    docstrings (comments are not in the tree): editing documentation keeps the cache, while any edit to
+    the code invalidates every cached cell, coarse but safe: a cached result can never come from code
+    other than the code that would compute it now.
     """
     package = Path(hipref.__file__).resolve().parent
     digest = hashlib.sha256()
     for source in sorted(package.rglob("*.py")):
-        digest.update(source.relative_to(package).as_posix().encode() + b"\0")
-        digest.update(source.read_bytes() + b"\0")
+        relative = source.relative_to(package)
+        if relative.parts[0] in NOT_IN_ROWS:
+            continue
+        digest.update(relative.as_posix().encode() + b"\0")
+        digest.update(ast.dump(_without_docstrings(ast.parse(source.read_bytes()))).encode() + b"\0")
     return f"{hipref.__version__}+{digest.hexdigest()[:16]}"
+
+
+def _without_docstrings(tree: ast.Module) -> ast.Module:
+    """`tree` without its string statements: module, class, function and attribute docstrings."""
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list):
+            kept = [
+                statement
+                for statement in body
+                if not (
+                    isinstance(statement, ast.Expr)
+                    and isinstance(statement.value, ast.Constant)
+                    and isinstance(statement.value.value, str)
+                )
+            ]
+            node.body = kept or [ast.Pass()]  # type: ignore[attr-defined]
+    return tree
 
 
 def default_cache_dir() -> Path:
@@ -251,22 +285,16 @@ def _exit_with_parent() -> None:
 
 
 @contextlib.contextmanager
-def _one_torch_thread() -> Iterator[None]:
-    """Run torch single-threaded for the duration of a cell and restore the caller's setting after
-    (the in-process path runs inside the user's kernel)."""
-    torch = sys.modules.get("torch")
-    if torch is None:
-        yield
-        return
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
+def _artefacts_in(cache_dir: CacheDir) -> Iterator[None]:
+    global _SWEEP_CACHE_DIR
+    before, _SWEEP_CACHE_DIR = _SWEEP_CACHE_DIR, cache_dir
     try:
         yield
     finally:
-        torch.set_num_threads(before)
+        _SWEEP_CACHE_DIR = before
 
 
-def _run_cell(fn: CellFn, cell: Any) -> tuple[bool, Any]:
+def _run_cell(fn: CellFn, cell: Any, cache_dir: CacheDir = None) -> tuple[bool, Any]:
     """Run one cell wherever it lands; (True, rows) or (False, the traceback text).
 
     Failures come back as text rather than exceptions so the remaining cells keep running and the
@@ -275,7 +303,7 @@ def _run_cell(fn: CellFn, cell: Any) -> tuple[bool, Any]:
     import pandas as pd
 
     try:
-        with _one_torch_thread():
+        with one_thread(), _artefacts_in(cache_dir):
             rows = fn(cell)
         if not isinstance(rows, pd.DataFrame):
             raise TypeError(f"{fn.__qualname__} returned {type(rows).__name__}, not a pandas DataFrame")
@@ -284,18 +312,18 @@ def _run_cell(fn: CellFn, cell: Any) -> tuple[bool, Any]:
     return True, rows
 
 
-def _run_local(fn: CellFn, cells: dict[str, Any], workers: int) -> Outcomes:
+def _run_local(fn: CellFn, cells: dict[str, Any], workers: int, cache_dir: CacheDir) -> Outcomes:
     """Yield (key, ok, result) as cells finish, in-process or on a pool of spawned processes."""
     if workers <= 1 or len(cells) <= 1:
         for key, cell in cells.items():
-            yield key, *_run_cell(fn, cell)
+            yield key, *_run_cell(fn, cell, cache_dir)
         return
     # "spawn" starts clean interpreters: safe under Jupyter and with torch, where fork can deadlock.
     context = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(min(workers, len(cells)), mp_context=context, initializer=_init_worker)
     finished = False
     try:
-        futures = {pool.submit(_run_cell, fn, cell): key for key, cell in cells.items()}
+        futures = {pool.submit(_run_cell, fn, cell, cache_dir): key for key, cell in cells.items()}
         for future in as_completed(futures):
             try:
                 yield futures[future], *future.result()
@@ -321,7 +349,7 @@ def _terminate_workers(pool: ProcessPoolExecutor) -> None:
         process.terminate()
 
 
-def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str) -> Outcomes:
+def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str, cache_dir: CacheDir) -> Outcomes:
     """Yield (key, ok, result) as cells finish on a Dask cluster.
 
     Dask's nanny already starts workers with OMP/MKL/OpenBLAS at one thread; `_run_cell` sets torch's.
@@ -330,7 +358,9 @@ def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str) -> Outcomes:
     import distributed
 
     with distributed.Client(scheduler) as client:
-        futures = {client.submit(_run_cell, fn, cell, pure=False): key for key, cell in cells.items()}
+        futures = {
+            client.submit(_run_cell, fn, cell, cache_dir, pure=False): key for key, cell in cells.items()
+        }
         for future in distributed.as_completed(futures):
             try:
                 yield futures[future], *future.result()
@@ -363,7 +393,8 @@ def run_sweep(
     """Run `fn` on every cell and return all rows, in the order of `cells`, with a fresh index.
 
     `fn` must be a module-level function (workers import it by name). `cache_dir=None` uses
-    `default_cache_dir()`; `NO_CACHE` (False) disables caching. `scheduler` (or `$HIPREF_DASK_SCHEDULER`)
+    `default_cache_dir()`; `NO_CACHE` (False) disables caching. The artefacts the cells build
+    (`cached_artefact`) are cached in the same directory. `scheduler` (or `$HIPREF_DASK_SCHEDULER`)
     is a Dask scheduler address such as `tcp://127.0.0.1:8786`; without one the cells run on `workers`
     local processes (default: all cores), or in this process when one worker or one cell remains.
     Cells that fail do not stop the others; `SweepError` lists them once everything else is done.
@@ -373,6 +404,7 @@ def run_sweep(
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     directory = _resolve_cache_dir(cache_dir)
+    cells_cache: CacheDir = NO_CACHE if directory is None else directory  # where the cells' artefacts go
     keys = [cell_key(fn, cell) for cell in cells]
     done: dict[str, pd.DataFrame] = {}
     if directory is not None:
@@ -390,9 +422,9 @@ def run_sweep(
         if pending:
             address = scheduler or os.environ.get("HIPREF_DASK_SCHEDULER")
             if address:
-                finished = _run_dask(fn, pending, address)
+                finished = _run_dask(fn, pending, address, cells_cache)
             else:
-                finished = _run_local(fn, pending, workers or os.cpu_count() or 1)
+                finished = _run_local(fn, pending, workers or os.cpu_count() or 1, cells_cache)
             # closing() shuts the pool or client down at once if this loop is interrupted.
             with contextlib.closing(finished):
                 for key, ok, result in finished:
@@ -439,7 +471,7 @@ def cached_artefact(
     key = _key(name, _describe(config))
     if key in _ARTEFACTS:
         return _ARTEFACTS[key]
-    directory = _resolve_cache_dir(cache_dir)
+    directory = _resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
     path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
     found, value = (False, None) if path is None else _load(path, problem)
     if not found:

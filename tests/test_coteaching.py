@@ -16,7 +16,7 @@ from hipref.learners.coteaching import (
     SIUpdateRecord,
     classifier_inputs,
     coteach_select,
-    legacy_schedule,
+    reset_every_step_schedule,
 )
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
@@ -104,7 +104,7 @@ def test_a_trained_pair_forgets_mostly_flipped_labels() -> None:
 def test_the_default_schedules_filter_forgets_flipped_labels_well_above_chance() -> None:
     # Through the learner, on 99 preferences at 20 % noise with uniformly drawn pairs: a filter that
     # forgets at random has a precision of about 0.2; one step per preference with the refresh every 16
-    # (the legacy schedule) scored close to that when the queries are concentrated.
+    # (the reset-every-step schedule) scored close to that when the queries are concentrated.
     precisions = []
     for seed in range(2):
         rng = np.random.default_rng(seed)
@@ -184,11 +184,11 @@ def test_the_classifiers_refresh_when_the_buffer_reaches_a_multiple_of_f_refresh
     assert learner.coteaching_steps == 10 and learner.classifier_steps == 20
 
 
-def test_the_legacy_schedule_refreshes_every_f_refresh_classifier_steps(
+def test_the_reset_every_step_schedule_refreshes_every_f_refresh_classifier_steps(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
-    config = legacy_schedule(history=1, start_size=4, batch_size=8, refresh_frequency=3)
+    config = reset_every_step_schedule(history=1, start_size=4, batch_size=8, refresh_frequency=3)
     learner = CoPESILearner(model, 0.25, config, seed=0)
     refreshed_after_steps: list[int] = []
     reinitialise = learner.pair.reinitialise

@@ -51,17 +51,13 @@ import json
 import numpy as np
 import pandas as pd
 
+from hipref.envs.flat_wiping import DIRECTIONS, collect_demonstrations, low_level_expert
 from hipref.envs.gridworld import WipingGrid
 from hipref.envs.wiping import WipingTask
 from hipref.experiments.r1_feedback import R1Cell, R1Config, run_cell
-from hipref.experiments.sysid import PretrainData, SIRun, run_si
-from hipref.learners.pretrained_coach import (
-    PretrainedCoach,
-    PretrainedCoachConfig,
-    behaviour_cloning,
-    collect_demonstrations,
-    low_level_expert,
-)
+from hipref.experiments.si_pretraining import PretrainData
+from hipref.experiments.si_run import SIRun, run_si
+from hipref.learners.pretrained_coach import PretrainedCoach, PretrainedCoachConfig, behaviour_cloning
 from hipref.teachers.feedback import ScriptedFeedbackTeacher
 
 rows = {}
@@ -78,7 +74,8 @@ task = WipingTask()
 grid = WipingGrid(task.config.area_x, task.config.area_y)
 observations, actions = collect_demonstrations(4, 2, config.desk_height, config.chunk_periods, 0)
 coach_config = PretrainedCoachConfig(bc_epochs=5)
-learner = PretrainedCoach(behaviour_cloning(observations, actions, coach_config, 7), coach_config)
+policy = behaviour_cloning(observations, actions, len(DIRECTIONS), coach_config, 7)
+learner = PretrainedCoach(policy, coach_config)
 teacher = ScriptedFeedbackTeacher(low_level_expert(grid))
 rng = np.random.default_rng(7)
 for state in observations[:20]:

@@ -16,10 +16,11 @@ from hipref.experiments.noise_estimation import (
     error_trend,
     overestimate,
     paper_distance,
+    random_preferences,
     run,
     table3,
 )
-from hipref.learners.noise_estimation import CONFLICTS, estimate_noise, random_preferences
+from hipref.learners.noise_estimation import CONFLICTS, estimate_noise
 from hipref.results import TIDY_COLUMNS, check_tidy
 from tests._clips import shown
 

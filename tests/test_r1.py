@@ -8,17 +8,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from hipref.envs.flat_wiping import DIRECTIONS, OBSERVATION_SIZE, expert_direction, low_level_expert
 from hipref.envs.gridworld import WipingGrid
 from hipref.experiments.r1_feedback import METHODS, R1Cell, R1Config, run_cell
-from hipref.learners.pretrained_coach import (
-    DIRECTIONS,
-    FlatPolicy,
-    PretrainedCoach,
-    PretrainedCoachConfig,
-    expert_direction,
-    low_level_expert,
-)
+from hipref.learners.pretrained_coach import FlatPolicy, PretrainedCoach, PretrainedCoachConfig
 from hipref.teachers.feedback import ScriptedFeedbackTeacher
+
+
+def _policy() -> FlatPolicy:
+    return FlatPolicy(OBSERVATION_SIZE, len(DIRECTIONS), 8)
 
 
 def _state_at(grid: WipingGrid, xy: np.ndarray) -> tuple[float, ...]:
@@ -31,7 +29,7 @@ def _state_at(grid: WipingGrid, xy: np.ndarray) -> tuple[float, ...]:
 def test_low_level_teacher_says_yes_to_the_expert_direction_no_to_the_opposite(cell: tuple[int, int]) -> None:
     grid = WipingGrid()
     teacher = ScriptedFeedbackTeacher(low_level_expert(grid))
-    learner = PretrainedCoach(FlatPolicy(8), PretrainedCoachConfig(hidden=8))
+    learner = PretrainedCoach(_policy(), PretrainedCoachConfig(hidden=8))
     xy = grid.center(cell)
     expert = expert_direction(grid, xy)
     # The expert's direction is the grid expert's move, seen as a displacement on the desk.
@@ -46,7 +44,7 @@ def test_eq1_on_the_flat_policy_moves_probability_the_way_of_the_feedback() -> N
     import torch
 
     torch.manual_seed(0)
-    learner = PretrainedCoach(FlatPolicy(8), PretrainedCoachConfig(hidden=8, learning_rate=0.5))
+    learner = PretrainedCoach(_policy(), PretrainedCoachConfig(hidden=8, learning_rate=0.5))
     s = np.zeros(5, np.float32)
     before = learner.probabilities(s)[3]
     learner.tell(learner.ask(s, 3), 1)

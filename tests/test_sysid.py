@@ -11,7 +11,6 @@ from hipref.learners.sysid import (
     Normaliser,
     PretrainConfig,
     SIModel,
-    flatten_history,
     pretrain,
     target_distribution,
 )
@@ -99,12 +98,6 @@ def test_normaliser_is_fitted_and_travels_in_the_state_dict() -> None:
     copy.load_state_dict(model.state_dict())
     np.testing.assert_array_equal(copy.predict(features), model.predict(features))
     assert np.allclose(normaliser(features).mean(axis=0), 0.0, atol=1e-9)
-
-
-def test_flatten_history_interleaves_states_and_actions_in_time_order() -> None:
-    states = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
-    actions = np.array([[10.0], [20.0], [30.0]])
-    np.testing.assert_array_equal(flatten_history(states, actions), [1, 2, 10, 3, 4, 20, 5, 6, 30])
 
 
 def test_invalid_pretraining_input_is_refused() -> None:

@@ -6,21 +6,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hipref.experiments import sysid
+from hipref.envs.task import Clip
+from hipref.envs.wiping import WipingTask
+from hipref.experiments import si_run
 from hipref.experiments.n_candidates import NCandidatesConfig
+from hipref.experiments.protocol import Protocol
 from hipref.experiments.r2_noise import R2Config
-from hipref.experiments.sysid import (
-    EvaluationSpec,
-    FineTuning,
-    PretrainData,
-    Protocol,
-    SIRun,
-    World,
-    collect_dataset,
-    evaluation_episodes,
-    pretrained_model,
-    run_si,
-)
+from hipref.experiments.si_pretraining import PretrainData, collect_dataset, pretrained_model
+from hipref.experiments.si_run import EvaluationSpec, FineTuning, SIRun, evaluation_episodes, run_si
 
 TINY = PretrainData(n_trajectories=24, trajectory_steps=40, pretrain_steps=400)
 
@@ -71,19 +64,10 @@ def test_replayed_learning_clips_give_the_rows_of_executing_them(domain, truth, 
                  data=TINY))
     replayed = run_si(cell)
     executed = []
-    monkeypatch.setattr(sysid, "learning_clips", lambda *args: executed.append(args))
-    monkeypatch.setattr(sysid.Clip, "replay", lambda *args: pytest.fail("a clip was replayed"))
+    monkeypatch.setattr(si_run, "learning_clips", lambda *args: executed.append(args))
+    monkeypatch.setattr(Clip, "replay", lambda *args: pytest.fail("a clip was replayed"))
     pd.testing.assert_frame_equal(replayed, run_si(cell))
     assert len(executed) == 1
-
-
-def test_a_replayed_clip_refuses_a_query_it_was_not_executed_for():
-    world = World("wiping")
-    layout = world.sample_layout(np.random.default_rng(0))
-    clip = world.clip(0.7, 0.6, layout, 3, np.random.default_rng(1))
-    np.testing.assert_array_equal(clip.replay(0.6, 3, np.random.default_rng(1)), clip.tau)
-    with pytest.raises(RuntimeError, match="depend on what the learner has learnt"):
-        clip.replay(0.62, 3, np.random.default_rng(1))
 
 
 def test_every_method_meets_the_same_evaluation_episodes():
@@ -94,21 +78,6 @@ def test_every_method_meets_the_same_evaluation_episodes():
     ]
     at_start = [frame[frame.episode == 0].value.tolist() for frame in first]
     assert at_start[0] == at_start[1] == at_start[2]
-
-
-@pytest.mark.parametrize(("domain", "truth", "estimate"), [("wiping", 0.62, 0.66), ("pushing", 12.0, 15.0)])
-def test_a_slice_is_cut_from_the_whole_clip_at_a_uniform_place(domain, truth, estimate):
-    # In wiping only the periods up to the slice's end are simulated; they must be the whole clip's.
-    world = World(domain)
-    layout = world.sample_layout(np.random.default_rng(5))
-    clip, _ = world.rollout(truth, estimate, layout)
-    firsts = []
-    for seed in range(40):
-        tau = world.clip_slice(truth, estimate, layout, 3, np.random.default_rng(seed))
-        first = int(np.random.default_rng(seed).integers(0, len(clip) - 2))
-        np.testing.assert_array_equal(tau, clip[first : first + 3].reshape(-1))
-        firsts.append(first)
-    assert max(firsts) > len(clip) / 2  # slices from the clip's second half too
 
 
 @pytest.mark.parametrize(
@@ -135,7 +104,7 @@ def test_bad_configs_are_refused_before_any_compute(make, monkeypatch):
     def no_compute(*args, **kwargs):
         raise AssertionError("computed before validating")
 
-    monkeypatch.setattr("hipref.experiments.sysid.collect_dataset", no_compute)
+    monkeypatch.setattr("hipref.experiments.si_pretraining.collect_dataset", no_compute)
     with pytest.raises(ValueError):
         make()
 
@@ -154,9 +123,9 @@ def test_the_protocol_crosses_a_fixed_grid_of_truths_with_seeds_and_osi_ignores_
 
 
 def test_two_truths_with_one_seed_draw_different_evaluation_episodes():
-    world = World("wiping")
+    task = WipingTask()
     first, second = (
-        evaluation_episodes(world, EvaluationSpec("wiping", truth, 0, 1, 2, 2, 3))[0] for truth in (0.6, 0.8)
+        evaluation_episodes(task, EvaluationSpec("wiping", truth, 0, 1, 2, 2, 3))[0] for truth in (0.6, 0.8)
     )
     assert not np.array_equal(first[0].layout[0], second[0].layout[0])
     assert first[0].slices.shape == (2, 3 * first[0].slices.shape[1] // 3)

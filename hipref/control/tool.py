@@ -23,6 +23,10 @@ from hipref.validation import check_vector
 FEATURES_PER_PERIOD = 21
 """What the SI model sees of one control period: joint positions (6), joint velocities (6), wrist force (3)
 and joint reference (6)."""
+WRIST_FORCE = slice(12, 15)
+"""The columns of a period's features holding the wrist force (x, y, z in the world frame, N)."""
+FORCE_Z = 14
+"""The column holding the wrist force's normal (z) component."""
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from hipref.control.tool import FEATURES_PER_PERIOD, WRIST_FORCE
 from hipref.envs.pushing import PushingConfig, PushingTask
 from hipref.envs.wiping import WipingConfig, WipingTask
 from hipref.validation import check_int, check_parameter
@@ -60,8 +61,9 @@ def _checked_action(space: gym.spaces.Box, action: Any) -> np.ndarray:
 class DeskWipingEnv(gym.Env):
     """Wipe a desk of unknown height.
 
-    Observation (float32, 21): joint positions (6, rad), joint velocities (6, rad/s), wrist force on the
-    sponge (3, N, world frame), the joint reference SPD tracks (6, rad), at the end of the last step.
+    Observation (float32, 21 = FEATURES_PER_PERIOD): joint positions (6, rad), joint velocities (6, rad/s),
+    wrist force on the sponge (3, N, world frame), the joint reference SPD tracks (6, rad), at the end of
+    the last step.
     Action (3): goal x, goal y on the desk (m, inside the wiping area) and the desk-height estimate (m).
     Reward: 1 for a successful stroke (goal reached with the contact force in the safe band for most of
     the way), else 0. An episode is truncated after `max_strokes` strokes.
@@ -76,12 +78,14 @@ class DeskWipingEnv(gym.Env):
         self.task = WipingTask(config)
         cfg = self.task.config
         self.max_strokes = max_strokes
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(21,), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(
+            -np.inf, np.inf, shape=(FEATURES_PER_PERIOD,), dtype=np.float32
+        )
         low = np.array([cfg.area_x[0], cfg.area_y[0], cfg.height_range[0]])
         high = np.array([cfg.area_x[1], cfg.area_y[1], cfg.height_range[1]])
         self.action_space = gym.spaces.Box(low, high, dtype=np.float64)
         self._strokes = 0
-        self._observation = np.zeros(21, dtype=np.float32)
+        self._observation = np.zeros(FEATURES_PER_PERIOD, dtype=np.float32)
         self._episode_over: bool | None = None
         """None outside an episode (before the first successful reset); else whether it has ended."""
 
@@ -94,7 +98,7 @@ class DeskWipingEnv(gym.Env):
         height = _parameter(self, options, cfg.height_range, "desk height")
         self.task.reset(height, (float(np.mean(cfg.area_x)), float(np.mean(cfg.area_y))))
         self._strokes = 0
-        self._observation = self.task._features().astype(np.float32)
+        self._observation = self.task.observation().astype(np.float32)
         self._episode_over = False
         return self._observation.copy(), {"param": height}
 
@@ -165,7 +169,7 @@ class PushingEnv(gym.Env):
         (estimate,) = _checked_action(self.action_space, action)
         self._episode_over = True  # one push per episode, and a failed push voids it
         push = self.task.push(float(estimate))
-        forces = np.linalg.norm(push.features[:, 12:15], axis=1)
+        forces = np.linalg.norm(push.features[:, WRIST_FORCE], axis=1)
         info = {
             "final_error": push.final_error,
             "contact_force": float(forces.max()),

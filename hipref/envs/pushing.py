@@ -35,6 +35,7 @@ from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.push import PushPlan, execute_push
 from hipref.control.tool import ControllerConfig, ToolController
+from hipref.envs.task import Layout, Rollout
 from hipref.sim.config import SceneConfig
 from hipref.sim.scene import Scene, make_scene
 from hipref.validation import check_int, check_interval, check_parameter, check_range
@@ -173,6 +174,29 @@ class PushingTask:
     def mass(self) -> float:
         return float(self.scene.model.body_mass[self.scene.cube_body])
 
+    # --- the Task interface (hipref.envs.task) ---------------------------------------------------------
+
+    @property
+    def parameter_range(self) -> tuple[float, float]:
+        """The cube masses in kg the task accepts (and SI's candidates cover)."""
+        return self.config.mass_range
+
+    def planned_periods(self, layout: Layout) -> None:
+        """None: a push lasts until the cube comes to rest, which only its execution tells."""
+        return None
+
+    def rollout(
+        self, true_parameter: float, estimate: float, layout: Layout, periods: int | None = None
+    ) -> Rollout:
+        """One push of a cube of mass `true_parameter` from the layout's start towards its goal, planned with
+        the mass `estimate`. A push is executed whole: `periods` must be None."""
+        if periods is not None:
+            raise ValueError(f"a push is executed whole (planned_periods is None), got periods={periods!r}")
+        start, goal = layout
+        self.reset(true_parameter, start, goal)
+        push = self.push(estimate)
+        return Rollout(push.features, bool(push.success))
+
     # --- layout ---------------------------------------------------------------------------------------
 
     def _standoff(self) -> float:
@@ -225,7 +249,7 @@ class PushingTask:
                 return False
         return True
 
-    def sample_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def sample_layout(self, rng: np.random.Generator) -> Layout:
         """A random cube start and goal, both inside the area, with the paddle's poses behind the cube at
         the start and at the goal both reachable; a config for which `layout_attempts` draws find none is
         refused, naming the fields that make layouts rare."""

@@ -16,7 +16,8 @@ import numpy as np
 
 from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
-from hipref.control.tool import ControllerConfig, ToolController
+from hipref.control.tool import FORCE_Z, ControllerConfig, ToolController
+from hipref.envs.task import Layout, Rollout
 from hipref.sim.config import SceneConfig
 from hipref.sim.scene import Scene, make_scene
 from hipref.validation import check_interval, check_parameter, check_range
@@ -112,10 +113,6 @@ def _check_goal(goal_xy: np.ndarray) -> np.ndarray:
     return goal
 
 
-FORCE_Z = 14
-"""Column of the features holding the wrist force's normal (z) component."""
-
-
 class WipingTask:
     """The wiping world with its goal-conditioned low-level policy; physics built once per instance."""
 
@@ -132,6 +129,47 @@ class WipingTask:
     @property
     def height(self) -> float:
         return self.scene.desk_height
+
+    # --- the Task interface (hipref.envs.task) ---------------------------------------------------------
+
+    @property
+    def parameter_range(self) -> tuple[float, float]:
+        """The desk heights in m the task accepts (and SI's candidates cover)."""
+        return self.config.height_range
+
+    def area_points(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """`count` points drawn uniformly from the wiping area, (count, 2)."""
+        cfg = self.config
+        return rng.uniform([cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], (count, 2))
+
+    def sample_layout(self, rng: np.random.Generator) -> Layout:
+        """A stroke's start and goal, both uniform over the wiping area."""
+        start, goal = self.area_points(rng, 2)
+        return start, goal
+
+    def planned_periods(self, layout: Layout) -> int:
+        """A stroke's length is set by its layout: the distance at the tool speed, then 0.1 s settling."""
+        start, goal = layout
+        return self._stroke_periods(np.array([float(start[0]), float(start[1])]), _check_goal(goal))
+
+    def rollout(
+        self, true_parameter: float, estimate: float, layout: Layout, periods: int | None = None
+    ) -> Rollout:
+        """One stroke from the layout's start to its goal with the height `estimate` over a desk at
+        `true_parameter`; its first `periods` control periods only, if given."""
+        start, goal = layout
+        self.reset(true_parameter, (float(start[0]), float(start[1])))
+        stroke = self.stroke(goal, estimate, periods=periods)
+        return Rollout(stroke.features, bool(stroke.success))
+
+    def observation(self) -> np.ndarray:
+        """The features of the current state, laid out as each period's in `Stroke.features`."""
+        d, scene = self.scene.data, self.scene
+        return np.concatenate(
+            [d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof], self.controller.force, self.controller.q_ref]
+        )
+
+    # --- the stroke --------------------------------------------------------------------------------------
 
     def reset(self, height: float, tool_xy: tuple[float, float] = (0.0, 0.05)) -> None:
         """Set the desk height and place the tool hovering above `tool_xy`, at rest."""
@@ -160,13 +198,6 @@ class WipingTask:
         """Normal force of the desk on the sponge, from the wrist sensor (N, upward positive)."""
         return float(self.controller.force[2])
 
-    def _features(self) -> np.ndarray:
-        """The features of the current state, laid out as each period's in `Stroke.features`."""
-        d, scene = self.scene.data, self.scene
-        return np.concatenate(
-            [d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof], self.controller.force, self.controller.q_ref]
-        )
-
     def approach(self, estimate: float) -> None:
         """Descend from hover to the estimated surface minus the press depth (fast, then at tool speed)."""
         cfg, scene_cfg = self.config, self.config.scene
@@ -188,16 +219,19 @@ class WipingTask:
         self.controller.track(targets, self.rotation)
         self.in_contact_phase = True
 
-    def _moving_periods(self, goal: np.ndarray) -> int:
-        """Control periods the reference takes from where it is to `goal` at the tool speed."""
+    def _moving_periods(self, origin: np.ndarray, goal: np.ndarray) -> int:
+        """Control periods the reference takes from `origin` to `goal` at the tool speed."""
         scene_cfg = self.config.scene
-        distance = float(np.linalg.norm(goal - self.reference[:2]))
+        distance = float(np.linalg.norm(goal - origin))
         return max(1, math.ceil(distance / (scene_cfg.tool_speed * scene_cfg.control_period)))
+
+    def _stroke_periods(self, origin: np.ndarray, goal: np.ndarray) -> int:
+        return self._moving_periods(origin, goal) + round(0.1 / self.config.scene.control_period)
 
     def stroke_periods(self, goal_xy: np.ndarray) -> int:
         """Control periods a stroke from the sponge's place to `goal_xy` lasts, whatever the estimate:
         moving at the tool speed, then settling for 0.1 s."""
-        return self._moving_periods(_check_goal(goal_xy)) + round(0.1 / self.config.scene.control_period)
+        return self._stroke_periods(self.reference[:2], _check_goal(goal_xy))
 
     def stroke(self, goal_xy: np.ndarray, estimate: float, *, periods: int | None = None) -> Stroke:
         """Move the sponge on the desk to `goal_xy` at tool speed, pressing at the estimated surface.
@@ -212,7 +246,7 @@ class WipingTask:
         total = self.stroke_periods(goal)
         if periods is not None and not 1 <= periods <= total:
             raise ValueError(f"periods must be in [1, {total}] for this stroke, got {periods!r}")
-        moving = self._moving_periods(goal)
+        moving = self._moving_periods(self.reference[:2], goal)
         ref = self.reference
         ref[2] = estimate - cfg.press_depth
         start = ref[:2].copy()

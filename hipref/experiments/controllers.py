@@ -12,12 +12,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from hipref.envs.pushing import PushingConfig, PushingTask
+from hipref.envs.pushing import PushingConfig
 from hipref.envs.wiping import WipingConfig, WipingTask
+from hipref.experiments.domains import domain_spec
+from hipref.results import tidy_rows
+from hipref.seeds import child_seeds
 from hipref.sweep import run_sweep
 from hipref.validation import check_int, check_range
 
@@ -108,31 +112,22 @@ class CurveCell:
 
 
 def _rows(domain: str, method: str, seed: int, metrics: dict[str, float], **extra: float) -> pd.DataFrame:
-    return pd.DataFrame(
-        [
-            {
-                "domain": domain,
-                "method": method,
-                "noise": 0.0,
-                "seed": seed,
-                "episode": 0,
-                "metric": name,
-                "value": float(value),
-                **extra,
-            }
-            for name, value in metrics.items()
-        ]
+    return tidy_rows(
+        [(name, float(value)) for name, value in metrics.items()],
+        ("metric", "value"),
+        domain=domain,
+        method=method,
+        noise=0.0,
+        seed=seed,
+        episode=0,
+        **extra,
     )
 
 
 def run_ablation_cell(cell: AblationCell) -> pd.DataFrame:
     """Follow the cell's random trajectory; the z force over every stroke (A.8, Fig. 7)."""
     task = WipingTask(compliant=cell.method == "admittance")
-    rng = np.random.default_rng(cell.seed)
-    cfg = task.config
-    goals = rng.uniform(
-        [cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], (cell.trajectory_goals, 2)
-    )
+    goals = task.area_points(np.random.default_rng(cell.seed), cell.trajectory_goals)
     task.reset(cell.desk_height, (0.0, 0.05))
     forces = np.concatenate([task.stroke(goal, cell.desired_height).force for goal in goals])
     return _rows(
@@ -158,30 +153,15 @@ def run_curve_cell(cell: CurveCell) -> pd.DataFrame:
     """One episode whose estimate is off the true parameter by exactly `cell.error` (see
     `_truth_and_estimate`: the truth is drawn only where that estimate is inside the range)."""
     rng = np.random.default_rng(cell.seed)
-    if cell.domain == "wiping":
-        wiping = WipingTask()
-        height, estimate = _truth_and_estimate(rng, cell.error, *wiping.config.height_range)
-        cfg = wiping.config
-        start, goal = rng.uniform([cfg.area_x[0], cfg.area_y[0]], [cfg.area_x[1], cfg.area_y[1]], (2, 2))
-        wiping.reset(height, tuple(start))
-        success = wiping.stroke(goal, estimate).success
-    else:
-        pushing = PushingTask()
-        mass, estimate = _truth_and_estimate(rng, cell.error, *pushing.config.mass_range)
-        start, goal = pushing.sample_layout(rng)
-        pushing.reset(mass, start, goal)
-        success = pushing.push(estimate).success
+    task = domain_spec(cell.domain).make_task()
+    truth, estimate = _truth_and_estimate(rng, cell.error, *task.parameter_range)
+    success = task.rollout(truth, estimate, task.sample_layout(rng)).success
     return _rows(cell.domain, "admittance", cell.seed, {"success_rate": success}, estimate_error=cell.error)
 
 
-def _seeds(root: int, label: int, count: int) -> list[int]:
-    """Per-episode seeds from numpy's SeedSequence: independent streams, reproducible from the root."""
-    children = np.random.SeedSequence([root, label]).spawn(count)
-    return [int(child.generate_state(1)[0]) for child in children]
-
-
-def run_ablation(config: ControllersConfig, **sweep: object) -> pd.DataFrame:
-    seeds = _seeds(config.seed, 5, config.ablation_seeds)
+def run_ablation(config: ControllersConfig, **sweep: Any) -> pd.DataFrame:
+    """Fig. 7: both controllers at every desired height, on `ablation_seeds` random trajectories."""
+    seeds = child_seeds([config.seed, 5], config.ablation_seeds)
     cells = [
         AblationCell(method, config.desk_height, h, config.trajectory_goals, seed)
         for method in ("spd", "admittance")
@@ -191,16 +171,17 @@ def run_ablation(config: ControllersConfig, **sweep: object) -> pd.DataFrame:
     return run_sweep(run_ablation_cell, cells, desc="Fig. 7 ablation", **sweep)
 
 
-def run_curves(config: ControllersConfig, **sweep: object) -> pd.DataFrame:
+def run_curves(config: ControllersConfig, **sweep: Any) -> pd.DataFrame:
+    """Success against estimate error in both tasks, `curve_seeds` random episodes per error."""
     cells = [
         CurveCell(domain, float(error), seed)
         for domain, errors, label in (("wiping", config.height_errors, 1), ("pushing", config.mass_errors, 2))
         for error in errors
-        for seed in _seeds(config.seed, label, config.curve_seeds)
+        for seed in child_seeds([config.seed, label], config.curve_seeds)
     ]
     return run_sweep(run_curve_cell, cells, desc="success vs estimate error", **sweep)
 
 
-def run(config: ControllersConfig, **sweep: object) -> pd.DataFrame:
-    """Both parts of the study, as one tidy frame."""
+def run(config: ControllersConfig, **sweep: Any) -> pd.DataFrame:
+    """Both parts of the study, as one tidy frame (the ablation's rows, then the curves')."""
     return pd.concat([run_ablation(config, **sweep), run_curves(config, **sweep)], ignore_index=True)

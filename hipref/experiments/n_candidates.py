@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
-from hipref.experiments.sysid import DOMAINS, Protocol, SIRun, run_si
+from hipref.experiments.domains import DOMAINS
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_int, check_range
 
@@ -40,7 +43,7 @@ def cells(cfg: NCandidatesConfig) -> list[SIRun]:
     ]
 
 
-def run(cfg: NCandidatesConfig) -> pd.DataFrame:
-    """All runs, tidy (see `run_si`); `n_candidates` tells the runs apart."""
-    cfg.pretrain((cfg.domain,))
-    return run_sweep(run_si, cells(cfg), desc="N candidates")
+def run(config: NCandidatesConfig, **sweep: Any) -> pd.DataFrame:
+    """All runs, tidy (see `run_si`); `n_candidates` tells the runs apart. `sweep`: `run_sweep`'s options."""
+    config.pretrain((config.domain,), sweep.get("cache_dir"))
+    return run_sweep(run_si, cells(config), desc="N candidates", **sweep)

@@ -11,18 +11,23 @@ The candidates are those of A.9's only example ("0.5m ... than 0.6m"), 0.1 m apa
 conflicts the same-pair reading finds, depends on how many candidates there are.
 
 Each dataset takes a fraction of a millisecond, so the whole table (7 x 100 datasets, two readings) runs
-in this process in about a second; a parallel sweep would cost more in process start-up than it saves.
+in this process in about a second: a pool of workers would cost more in process start-up than it saves.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from hipref.learners.noise_estimation import CONFLICTS, estimate_noise, random_preferences
-from hipref.learners.sysid import CUBE_MASS, DESK_HEIGHT, CandidateSet
+from hipref.experiments.domains import DOMAINS
+from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
+from hipref.learners.sysid import CandidateSet
+from hipref.results import tidy_rows
+from hipref.sweep import run_sweep
+from hipref.teachers.preference import pair_labels
 from hipref.validation import check_choice, check_int, check_range
 from hipref.verdicts import bootstrap_mean, trend
 
@@ -39,9 +44,6 @@ PAPER_TABLE3: dict[float, float] = {
 
 PAPER_OVERESTIMATE = 0.06
 """A.9: 'the algorithm often tends to overestimate the noise by about 6%' (absolute, in noise fraction)."""
-
-CANDIDATES: dict[str, CandidateSet] = {"wiping": DESK_HEIGHT, "pushing": CUBE_MASS}
-"""Each domain's candidate grid, the one the learners see (A.9's example is desk height)."""
 
 PAPER_EXAMPLE_SPACING = 0.1
 """A.9's example compares 0.5 m with 0.6 m: desk heights 0.1 m apart, 5 candidates on [0.5, 0.9] m."""
@@ -74,8 +76,8 @@ class NoiseEstimationConfig:
     candidate_spacing: float = PAPER_EXAMPLE_SPACING
     """Spacing of the candidates over the domain's whole range, in its unit (m or kg); it must divide the
     range into whole steps. Default: A.9's example, 0.1 m (5 heights on [0.5, 0.9] m; 3.0 kg gives 5 masses
-    on [8, 20] kg). The grids the learners see (`CANDIDATES`) are 0.01 m (41 heights) and 0.25 kg (49
-    masses)."""
+    on [8, 20] kg). The grids the learners see (`hipref.experiments.domains`) are 0.01 m (41 heights)
+    and 0.25 kg (49 masses)."""
     seed: int = 0
     """Root seed; each dataset's generator derives from it, the noise level and the repetition."""
 
@@ -88,8 +90,8 @@ class NoiseEstimationConfig:
             )
         for level in self.noise_levels:
             check_range("noise_levels", level, 0.0, 1.0)
-        check_choice("domain", self.domain, CANDIDATES)
-        grid = CANDIDATES[self.domain]
+        check_choice("domain", self.domain, tuple(DOMAINS))
+        grid = DOMAINS[self.domain].candidates
         span = grid.high - grid.low
         spacing = self.candidate_spacing
         ok = isinstance(spacing, int | float) and not isinstance(spacing, bool) and 0 < spacing <= span
@@ -103,7 +105,7 @@ class NoiseEstimationConfig:
     @property
     def candidates(self) -> CandidateSet:
         """The candidates the random pairs are drawn from."""
-        grid = CANDIDATES[self.domain]
+        grid = DOMAINS[self.domain].candidates
         return CandidateSet(low=grid.low, high=grid.high, resolution=float(self.candidate_spacing))
 
 
@@ -113,34 +115,69 @@ def dataset_rng(seed: int, true_noise: float, repetition: int) -> np.random.Gene
     return np.random.default_rng(np.random.SeedSequence([seed, round(true_noise * 10_000), repetition]))
 
 
-def run(config: NoiseEstimationConfig) -> pd.DataFrame:
-    """Tidy rows: per dataset and reading of a conflict, `estimated_noise` (Algorithm 5) and `true_noise`.
+def random_preferences(
+    n: int, true_noise: float, candidates: CandidateSet, rng: np.random.Generator
+) -> PreferenceSet:
+    """The A.9 / Table 3 dataset: n random pairs of distinct candidates, labelled by nearness to a true
+    parameter drawn uniformly from the candidate range, each label flipped with probability true_noise.
 
-    Both readings (`METHODS`) estimate from the same datasets. `seed` is the repetition number; with
-    `config.seed` it determines the dataset (`dataset_rng`); `n_candidates` is the size of the grid.
+    The labels follow the scripted teacher's rule (`pair_labels`, ties broken at random), on all pairs at
+    once.
     """
+    check_int("n", n, 1)
+    check_range("true_noise", true_noise, 0.0, 1.0)
+    values = candidates.values
+    first_index = rng.integers(len(values), size=n)
+    # Uniform over the other len(values) - 1 candidates: draw from one fewer and skip first_index.
+    second_index = rng.integers(len(values) - 1, size=n)
+    second_index += second_index >= first_index
+    first, second = values[first_index], values[second_index]
+    true_parameter = rng.uniform(candidates.low, candidates.high)
+    nearer, tied = pair_labels(first, second, true_parameter)
+    tie_break = np.where(rng.random(n) < 0.5, 1, -1)
+    label = np.where(tied, tie_break, nearer)
+    flipped = rng.random(n) < true_noise
+    label[flipped] *= -1
+    return PreferenceSet(first=first, second=second, label=label)
+
+
+@dataclass(frozen=True)
+class NoiseLevelCell:
+    """The datasets of one true noise level (a sweep cell)."""
+
+    config: NoiseEstimationConfig
+    true_noise: float
+
+
+def run_noise_level(cell: NoiseLevelCell) -> pd.DataFrame:
+    """Tidy rows of one true noise level: per dataset and reading of a conflict, `estimated_noise`
+    (Algorithm 5) and `true_noise`. `seed` is the repetition number; with `config.seed` it determines the
+    dataset (`dataset_rng`); `n_candidates` is the size of the grid."""
+    config, true_noise = cell.config, cell.true_noise
     candidates = config.candidates
     rows = []
-    for true_noise in config.noise_levels:
-        for repetition in range(config.repetitions):
-            rng = dataset_rng(config.seed, true_noise, repetition)
-            preferences = random_preferences(config.n_preferences, true_noise, candidates, rng)
-            for conflict, method in METHODS.items():
-                estimate = estimate_noise(preferences, conflict)
-                for metric, value in (("estimated_noise", estimate), ("true_noise", true_noise)):
-                    rows.append(
-                        {
-                            "domain": config.domain,
-                            "method": method,
-                            "noise": float(true_noise),
-                            "seed": repetition,
-                            "episode": 0,
-                            "metric": metric,
-                            "value": float(value),
-                            "n_candidates": candidates.size,
-                        }
-                    )
-    return pd.DataFrame(rows)
+    for repetition in range(config.repetitions):
+        rng = dataset_rng(config.seed, true_noise, repetition)
+        preferences = random_preferences(config.n_preferences, true_noise, candidates, rng)
+        for conflict, method in METHODS.items():
+            estimate = estimate_noise(preferences, conflict)
+            for metric, value in (("estimated_noise", estimate), ("true_noise", true_noise)):
+                rows.append((method, float(true_noise), repetition, metric, float(value)))
+    return tidy_rows(
+        rows,
+        ("method", "noise", "seed", "metric", "value"),
+        domain=config.domain,
+        episode=0,
+        n_candidates=candidates.size,
+    )
+
+
+def run(config: NoiseEstimationConfig, **sweep: Any) -> pd.DataFrame:
+    """Every true noise level's rows (`run_noise_level`); both readings (`METHODS`) estimate from the same
+    datasets. A level takes a fraction of a second, so the sweep runs in this process unless `sweep` asks
+    for workers."""
+    cells = [NoiseLevelCell(config, float(level)) for level in config.noise_levels]
+    return run_sweep(run_noise_level, cells, desc="Table 3", **{"workers": 1, **sweep})
 
 
 def summarise(rows: pd.DataFrame) -> pd.DataFrame:

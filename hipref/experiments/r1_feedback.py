@@ -22,24 +22,27 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from hipref.envs.gridworld import Cell, WipingGrid
-from hipref.envs.wiping import WipingTask
-from hipref.learners.coach import CoachConfig, TabularCoach
-from hipref.learners.pretrained_coach import (
+from hipref.envs.flat_wiping import (
+    DIRECTIONS,
     OBSERVATION_SIZE,
-    PretrainedCoach,
-    PretrainedCoachConfig,
     apply_action,
-    behaviour_cloning,
     collect_demonstrations,
     low_level_expert,
     observe,
 )
-from hipref.sweep import Expect, cached_artefact, run_sweep
+from hipref.envs.gridworld import Cell, WipingGrid
+from hipref.envs.wiping import WipingTask
+from hipref.learners.coach import CoachConfig, TabularCoach
+from hipref.learners.pretrained_coach import PretrainedCoach, PretrainedCoachConfig, behaviour_cloning
+from hipref.numerics import one_thread
+from hipref.results import tidy_rows
+from hipref.seeds import child_seeds
+from hipref.sweep import NO_CACHE, CacheDir, Expect, cached_artefact, run_sweep
 from hipref.teachers.feedback import ScriptedFeedbackTeacher
 from hipref.validation import check_choice, check_int, check_range
 
@@ -119,12 +122,13 @@ def demo_spec(config: R1Config) -> DemoSpec:
     return DemoSpec(config.demos, config.demo_goals, config.desk_height, config.chunk_periods, config.seed)
 
 
-def demonstrations(spec: DemoSpec) -> tuple[np.ndarray, np.ndarray]:
+def demonstrations(spec: DemoSpec, cache_dir: CacheDir = None) -> tuple[np.ndarray, np.ndarray]:
     """The demonstrations, collected once per spec and cached."""
     return cached_artefact(
         "r1_demonstrations",
         spec,
         lambda: collect_demonstrations(spec.count, spec.goals, spec.height, spec.chunk_periods, spec.seed),
+        cache_dir=cache_dir,
         expect=Expect(
             tuple,
             lambda d: d[0].ndim == 2 and d[0].shape[1] == OBSERVATION_SIZE and d[1].shape == (len(d[0]),),
@@ -202,58 +206,44 @@ def pretrained_episode(
 
 def run_cell(cell: R1Cell) -> pd.DataFrame:
     """All learning episodes of one (method, seed): cells wiped per episode, as tidy rows."""
-    import torch
-
-    torch.set_num_threads(1)
     config = cell.config
     check_choice("method", cell.method, METHODS)
     rng = np.random.default_rng(cell.seed)
     task = WipingTask()
     grid = WipingGrid(task.config.area_x, task.config.area_y)
-    if cell.method == "tabular_coach":
-        learner = TabularCoach(grid.n_states, grid.n_actions, CoachConfig(config.coach_learning_rate))
-        teacher = ScriptedFeedbackTeacher(grid.expert)
-        episode = tabular_episode
-    else:
-        coach_config = PretrainedCoachConfig(
-            config.hidden, config.bc_epochs, learning_rate=config.policy_learning_rate
-        )
-        observations, actions = demonstrations(demo_spec(config))
-        learner = PretrainedCoach(
-            behaviour_cloning(observations, actions, coach_config, cell.seed), coach_config
-        )
-        teacher = ScriptedFeedbackTeacher(low_level_expert(grid))
-        episode = pretrained_episode
-    rows = []
-    for k in range(config.episodes):
-        cells, decisions, steps = episode(task, grid, learner, teacher, config, rng)  # type: ignore[arg-type]
-        rows.append(
-            {
-                "domain": "wiping",
-                "method": cell.method,
-                "noise": 0.0,
-                "seed": cell.seed,
-                "episode": k,
-                "metric": "cells_wiped",
-                "value": float(cells),
-                "decisions": decisions,
-                "physics_steps": steps,
-            }
-        )
-    return pd.DataFrame(rows)
+    with one_thread():
+        if cell.method == "tabular_coach":
+            learner = TabularCoach(grid.n_states, grid.n_actions, CoachConfig(config.coach_learning_rate))
+            teacher = ScriptedFeedbackTeacher(grid.expert)
+            episode = tabular_episode
+        else:
+            coach_config = PretrainedCoachConfig(
+                config.hidden, config.bc_epochs, learning_rate=config.policy_learning_rate
+            )
+            observations, actions = demonstrations(demo_spec(config))
+            policy = behaviour_cloning(observations, actions, len(DIRECTIONS), coach_config, cell.seed)
+            learner = PretrainedCoach(policy, coach_config)
+            teacher = ScriptedFeedbackTeacher(low_level_expert(grid))
+            episode = pretrained_episode
+        rows = []
+        for k in range(config.episodes):
+            cells, decisions, steps = episode(task, grid, learner, teacher, config, rng)  # type: ignore[arg-type]
+            rows.append((k, "cells_wiped", float(cells), decisions, steps))
+    return tidy_rows(
+        rows,
+        ("episode", "metric", "value", "decisions", "physics_steps"),
+        domain="wiping",
+        method=cell.method,
+        noise=0.0,
+        seed=cell.seed,
+    )
 
 
-def run_seeds(config: R1Config) -> list[int]:
-    """Per-run seeds from numpy's SeedSequence: independent streams, reproducible from the root."""
-    return [
-        int(child.generate_state(1)[0]) for child in np.random.SeedSequence(config.seed).spawn(config.seeds)
-    ]
-
-
-def run(config: R1Config, **sweep: object) -> pd.DataFrame:
-    """Both methods over every seed; the demonstrations are collected first, once, in this process."""
-    cache = sweep.get("cache_dir")
-    if cache is not False:
-        demonstrations(demo_spec(config))
-    cells = [R1Cell(config, method, seed) for method in METHODS for seed in run_seeds(config)]
-    return run_sweep(run_cell, cells, desc="R1 feedback (Fig. 2c)", **sweep)  # type: ignore[arg-type]
+def run(config: R1Config, **sweep: Any) -> pd.DataFrame:
+    """Both methods over `config.seeds` seeds (from numpy's SeedSequence of `config.seed`); the
+    demonstrations are collected first, once, in this process. `sweep`: `run_sweep`'s options."""
+    if sweep.get("cache_dir") is not NO_CACHE:
+        demonstrations(demo_spec(config), sweep.get("cache_dir"))
+    seeds = child_seeds(config.seed, config.seeds)
+    cells = [R1Cell(config, method, seed) for method in METHODS for seed in seeds]
+    return run_sweep(run_cell, cells, desc="R1 feedback (Fig. 2c)", **sweep)

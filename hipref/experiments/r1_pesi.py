@@ -7,10 +7,12 @@ and evaluated on the same episodes, so PESI - OSI and PESI - PESI-CE are paired 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
-from hipref.experiments.sysid import Protocol, SIRun, run_si
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 
 METHODS: dict[str, tuple[str, ...]] = {"wiping": ("osi", "pesi", "pesi_ce"), "pushing": ("osi", "pesi")}
@@ -32,7 +34,7 @@ def cells(cfg: R1Config) -> list[SIRun]:
     ]
 
 
-def run(cfg: R1Config) -> pd.DataFrame:
-    """All runs, tidy (see `run_si`)."""
-    cfg.pretrain(METHODS)
-    return run_sweep(run_si, cells(cfg), desc="R1 PESI")
+def run(config: R1Config, **sweep: Any) -> pd.DataFrame:
+    """All runs, tidy (see `run_si`). `sweep`: `run_sweep`'s options."""
+    config.pretrain(METHODS, sweep.get("cache_dir"))
+    return run_sweep(run_si, cells(config), desc="R1 PESI", **sweep)

@@ -7,10 +7,13 @@ environment, so PESI at each noise level is compared with OSI (and with PESI at 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
-from hipref.experiments.sysid import DOMAINS, Protocol, SIRun, run_si
+from hipref.experiments.domains import DOMAINS
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_range
 
@@ -51,7 +54,7 @@ def cells(cfg: R2Config) -> list[SIRun]:
     return osi + pesi
 
 
-def run(cfg: R2Config) -> pd.DataFrame:
-    """All runs, tidy (see `run_si`); OSI's rows have noise 0."""
-    cfg.pretrain(cfg.domains)
-    return run_sweep(run_si, cells(cfg), desc="R2 noise")
+def run(config: R2Config, **sweep: Any) -> pd.DataFrame:
+    """All runs, tidy (see `run_si`); OSI's rows have noise 0. `sweep`: `run_sweep`'s options."""
+    config.pretrain(config.domains, sweep.get("cache_dir"))
+    return run_sweep(run_si, cells(config), desc="R2 noise", **sweep)

@@ -2,19 +2,22 @@
 
 Every (domain, noise level, seed) environment is learnt by both methods with the same seed, so both face
 the same true parameter, the same teacher noise draws and the same evaluation episodes
-(`hipref.experiments.sysid`): the comparison is paired. Claims are tested on the final evaluation (after
+(`hipref.experiments.si_run`): the comparison is paired. Claims are tested on the final evaluation (after
 the last learning episode) with a bootstrap interval over seeds of the paired difference, not by eye.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from hipref.experiments.sysid import DOMAINS, Protocol, SIRun, run_si
-from hipref.experiments.sysid import METHODS as SI_METHODS
+from hipref.experiments.domains import DOMAINS
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_run import METHODS as SI_METHODS
+from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_range
 from hipref.verdicts import Difference, better, combine, no_difference, paired_difference
@@ -69,9 +72,9 @@ def cells(config: R3Config) -> list[SIRun]:
     ]
 
 
-def run(config: R3Config, **sweep: object) -> pd.DataFrame:
+def run(config: R3Config, **sweep: Any) -> pd.DataFrame:
     """Tidy rows of every run (see `run_si`), with the filter's precision and recall for CO-PESI."""
-    config.pretrain(config.domains)
+    config.pretrain(config.domains, sweep.get("cache_dir"))
     return run_sweep(run_si, cells(config), desc="R3: " + " vs ".join(config.methods), **sweep)
 
 

@@ -14,10 +14,13 @@ paired (same truth, seed, teacher draws and evaluation episodes).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
-from hipref.experiments.sysid import DOMAINS, FineTuning, Protocol, SIRun, run_si
+from hipref.experiments.domains import DOMAINS
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_run import FineTuning, SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_range
 
@@ -110,18 +113,18 @@ def cells(config: SensitivityConfig, variant: str) -> list[SIRun]:
     ]
 
 
-def run(config: SensitivityConfig) -> pd.DataFrame:
+def run(config: SensitivityConfig, **sweep: Any) -> pd.DataFrame:
     """Tidy rows of every run (see `run_si`) with a `variant` column.
 
     Every distinct run of every variant goes into one sweep (one pool of workers, each run once); the rows
     of each variant are then read back from the sweep's cache."""
     for variant in config.variants:
-        variant_protocol(config, variant)[0].pretrain(config.domains)
+        variant_protocol(config, variant)[0].pretrain(config.domains, sweep.get("cache_dir"))
     runs = {variant: cells(config, variant) for variant in config.variants}
     distinct = list(dict.fromkeys(run for variant_runs in runs.values() for run in variant_runs))
-    run_sweep(run_si, distinct, desc="SI sensitivity")
+    run_sweep(run_si, distinct, desc="SI sensitivity", **sweep)
     frames = [
-        run_sweep(run_si, variant_runs, desc=variant).assign(variant=variant)
+        run_sweep(run_si, variant_runs, desc=variant, **sweep).assign(variant=variant)
         for variant, variant_runs in runs.items()
     ]
     return pd.concat(frames, ignore_index=True)

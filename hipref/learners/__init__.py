@@ -6,7 +6,6 @@ from hipref.learners.noise_estimation import (
     PreferenceSet,
     conflict_counts,
     estimate_noise,
-    random_preferences,
 )
 from hipref.learners.pesi import SI_LOSSES, PESIConfig, PESILearner, pesi_loss, pesi_loss_n, standard_ce_loss
 from hipref.learners.sysid import (
@@ -16,7 +15,6 @@ from hipref.learners.sysid import (
     Normaliser,
     PretrainConfig,
     SIModel,
-    flatten_history,
     pretrain,
 )
 
@@ -39,10 +37,8 @@ __all__ = [
     "conflict_counts",
     "coteach_select",
     "estimate_noise",
-    "flatten_history",
     "pesi_loss",
     "pesi_loss_n",
     "pretrain",
-    "random_preferences",
     "standard_ce_loss",
 ]

@@ -25,11 +25,12 @@ from torch import nn
 from hipref.learners.noise_estimation import PreferenceSet, estimate_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
+from hipref.seeds import integer_seed
 from hipref.validation import check_choice, check_int, check_range
 
 REFRESH_UNITS: tuple[str, ...] = ("preferences", "steps")
-"""What f_refresh counts: received preferences |D| (default) or classifier co-teaching steps (the earlier
-schedule, kept for the sensitivity study)."""
+"""What f_refresh counts: received preferences |D| (default) or classifier co-teaching steps (the
+reset-every-step schedule, kept for the sensitivity study)."""
 RAMP_ORIGINS: tuple[str, ...] = ("refresh", "start")
 """Where the forget-rate ramp starts: at every (re-)initialisation of M_0, M_1, or once at the first step."""
 
@@ -45,8 +46,8 @@ class CoPESIConfig(PESIConfig):
     select by small loss, cross-update), then ONE SI update by Eq. 2 on the last step's b_0 (l.14). CO-PESI
     thus makes exactly one SI update per preference, as PESI does, and comparing the two isolates the filter.
 
-    Why rounds: with one classifier step per preference and a refresh every 16 such steps (the earlier
-    schedule, `legacy_schedule`), M_0 and M_1 never train on more than 16 minibatches, too few to learn
+    Why rounds: with one classifier step per preference and a refresh every 16 such steps
+    (`reset_every_step_schedule`), M_0 and M_1 never train on more than 16 minibatches, too few to learn
     the (pair -> label) rule well: a pair separates flipped from clean labels after some hundred steps
     (tests/test_coteaching.py).
 
@@ -58,7 +59,7 @@ class CoPESIConfig(PESIConfig):
 
         precision at 10 / 20 / 30 % noise
         schedule      height uniform    height belief     mass uniform      mass belief
-        earlier       .40  .51  .46     .18  .29  .35     .53  .57  .46     .31  .35  .35
+        reset/step    .40  .51  .46     .18  .29  .35     .53  .57  .46     .31  .35  .35
         t = 1         .55  .59  .52     .26  .33  .39     .59  .64  .51     .28  .36  .40
         t = 5         .55  .60  .50     .34  .38  .42     .70  .70  .53     .47  .49  .46
         t = 10        .59  .64  .51     .38  .42  .41     .66  .70  .53     .52  .51  .48
@@ -66,7 +67,7 @@ class CoPESIConfig(PESIConfig):
         t = 40        .59  .67  .53     .51  .48  .45     .64  .70  .54     .66  .60  .50
 
         recall at 10 / 20 / 30 % noise, over all SI updates (over the co-teaching updates only)
-        earlier       .39  .39  .43     .17  .21  .31     .42  .44  .44     .22  .26  .32
+        reset/step    .39  .39  .43     .17  .21  .31     .42  .44  .44     .22  .26  .32
         t = 10        .54  .47  .46     .35  .30  .36     .44  .46  .44     .34  .33  .38
                      (.60  .52  .51)   (.39  .34  .40)   (.57  .59  .55)   (.44  .42  .48)
 
@@ -74,14 +75,14 @@ class CoPESIConfig(PESIConfig):
     domains; with belief-drawn candidates precision still rises up to t = 40 (+0.05 to +0.14 over t = 10).
     t = 10 is the smallest t near the plateau of the default query sampling, at about 14 ms per preference
     (1.3 ms per classifier step on the shared 2-core machine; PESI's own update takes 0.8 ms). A filter
-    that forgets at random has the noise rate as precision: the earlier schedule comes within 0.1 of it
-    for height with concentrated candidates, and is better than chance but below t >= 10 elsewhere (all
-    rows use the centred inputs of `classifier_inputs`).
+    that forgets at random has the noise rate as precision: the reset-every-step schedule comes within
+    0.1 of it for height with concentrated candidates, and is better than chance but below t >= 10
+    elsewhere (all rows use the centred inputs of `classifier_inputs`).
 
     The forget-rate ramp (`ramp_steps`, `ramp_origin`), measured at t = 20 with 4 seeds: 0 steps, 10 from
     each refresh and 10 from the first step agree within 0.04 in precision and recall; 80 or 160 steps
     from each refresh raise precision by up to 0.1 and lower recall by up to 0.15, as the SI updates early
-    in each refresh period then forget less. The default keeps Han et al.'s 10, now counted in classifier
+    in each refresh period then forget less. The default keeps Han et al.'s 10, counted in classifier
     steps and restarted with every fresh network.
     """
 
@@ -100,7 +101,7 @@ class CoPESIConfig(PESIConfig):
     """What f_refresh counts. 'preferences': |D|, the preferences received (Alg. 1 checks the frequency
     once per received preference, l.6); the classifiers are re-initialised before the co-teaching of the
     preference that brings |D| to a multiple of f_refresh, so they train for f_refresh * rounds steps
-    between refreshes. 'steps': classifier co-teaching steps, the earlier
+    between refreshes. 'steps': classifier co-teaching steps, the reset-every-step
     schedule (with rounds=1 a refresh every f_refresh steps of one minibatch each)."""
     rounds: int = 10
     """t, 'Co-teaching Rounds' (Algorithm 1's input): classifier co-teaching steps (l.9-13) per received
@@ -111,12 +112,12 @@ class CoPESIConfig(PESIConfig):
     losses say nothing about which labels are flipped). 0 forgets the full amount from the first step."""
     ramp_origin: str = "refresh"
     """'refresh': the ramp restarts at every (re-)initialisation, since each refresh starts an untrained
-    network, as in Han et al. 'start': it runs once from the first co-teaching step (the earlier schedule,
-    where a restart would have kept the forget rate low for most of each 16-step refresh period)."""
+    network, as in Han et al. 'start': it runs once from the first co-teaching step (the reset-every-step
+    schedule, where a restart would keep the forget rate low for most of each 16-step refresh period)."""
     update_before_start: bool = True
     """While |D| <= s, update SI by Eq. 2 on an unfiltered batch, as PESI does (True), or not at all (False,
-    Alg. 1 l.5 read literally, the earlier schedule). True keeps one SI update per preference, so CO-PESI
-    and PESI make the same number of updates and differ only by the filter."""
+    Alg. 1 l.5 read literally, the reset-every-step schedule). True keeps one SI update per preference, so
+    CO-PESI and PESI make the same number of updates and differ only by the filter."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -142,9 +143,9 @@ class CoPESIConfig(PESIConfig):
             raise ValueError(f"update_before_start must be True or False, got {self.update_before_start!r}")
 
 
-def legacy_schedule(**overrides: Any) -> CoPESIConfig:
-    """The earlier schedule: one classifier step per preference, a refresh every f_refresh such steps, the
-    ramp from the first step only, and no SI update while |D| <= s; for the sensitivity study."""
+def reset_every_step_schedule(**overrides: Any) -> CoPESIConfig:
+    """The reset-every-step schedule: one classifier step per preference, a refresh every f_refresh such
+    steps, the ramp from the first step only, and no SI update while |D| <= s; for the sensitivity study."""
     settings: dict[str, Any] = dict(
         refresh_unit="steps", rounds=1, ramp_origin="start", update_before_start=False
     )
@@ -284,7 +285,7 @@ class CoPESILearner(PESILearner):
         return 1.0 - self.noise_level
 
     def _next_seed(self) -> int:
-        return int(self._torch_seeds.spawn(1)[0].generate_state(1)[0])
+        return integer_seed(self._torch_seeds.spawn(1)[0])
 
     def forget_rate(self, step: int) -> float:
         """Han et al.'s schedule: a linear ramp from 0 to 1 - remember_rate over `ramp_steps` classifier

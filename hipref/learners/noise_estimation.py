@@ -25,8 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hipref.learners.sysid import CandidateSet
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import check_choice
 
 CONFLICTS: tuple[str, ...] = ("same_pair", "no_common_parameter")
 """The readings of 'D_i is conflicting with D_j' (Alg. 5 l.4); see the module docstring."""
@@ -141,30 +140,3 @@ def estimate_noise(preferences: PreferenceSet, conflict: str = DEFAULT_CONFLICT)
     # Alg. 5 l.16-21: N = #{i : C[i] >= mu}
     n_suspect = int(np.count_nonzero(counts >= mu))
     return n_suspect / len(preferences)
-
-
-def random_preferences(
-    n: int, true_noise: float, candidates: CandidateSet, rng: np.random.Generator
-) -> PreferenceSet:
-    """The A.9 / Table 3 dataset: n random pairs of distinct candidates, labelled by nearness to a true
-    parameter drawn uniformly from the candidate range, each label flipped with probability true_noise.
-
-    Same labelling rule as ScriptedPreferenceTeacher (ties broken at random), vectorised for the 100
-    repetitions of the experiment.
-    """
-    check_int("n", n, 1)
-    check_range("true_noise", true_noise, 0.0, 1.0)
-    values = candidates.values
-    first_index = rng.integers(len(values), size=n)
-    # Uniform over the other len(values) - 1 candidates: draw from one fewer and skip first_index.
-    second_index = rng.integers(len(values) - 1, size=n)
-    second_index += second_index >= first_index
-    first, second = values[first_index], values[second_index]
-    true_parameter = rng.uniform(candidates.low, candidates.high)
-    distance_first, distance_second = np.abs(first - true_parameter), np.abs(second - true_parameter)
-    tied = np.isclose(distance_first, distance_second, rtol=1e-9, atol=1e-12)
-    tie_break = np.where(rng.random(n) < 0.5, 1, -1)
-    label = np.where(tied, tie_break, np.where(distance_first < distance_second, 1, -1))
-    flipped = rng.random(n) < true_noise
-    label[flipped] *= -1
-    return PreferenceSet(first=first, second=second, label=label)

@@ -75,19 +75,6 @@ CUBE_MASS = CandidateSet(low=8.0, high=20.0, resolution=0.25)
 """Cube mass in kg: the randomisation range of Table 2 in 0.25 kg steps (49 candidates)."""
 
 
-def flatten_history(states: np.ndarray, actions: np.ndarray) -> np.ndarray:
-    """The SI input tau = (s_{t-h}, a_{t-h}, ..., s_{t-1}, a_{t-1}) as one flat vector (section 4).
-
-    states: (h, state_dim); actions: (h, action_dim). Steps are interleaved in time order.
-    """
-    states, actions = np.atleast_2d(states), np.atleast_2d(actions)
-    if states.shape[0] != actions.shape[0]:
-        raise ValueError(
-            f"states and actions must cover the same h steps, got {states.shape[0]} and {actions.shape[0]}"
-        )
-    return np.concatenate([states, actions], axis=1).reshape(-1)
-
-
 @dataclass(frozen=True, eq=False)
 class Normaliser:
     """Per-feature standardisation (x - mean) / std, fitted on the pretraining data, kept with the model."""
@@ -110,8 +97,9 @@ class Normaliser:
 class SIModel(nn.Module):
     """SI: features -> logits over Phi. MLP [256, 128, 64, 32] with tanh (Table 2).
 
-    The input is the unnormalised flat history of `flatten_history`; the model standardises it with its own
-    stored `Normaliser` (buffers, so it travels in the state dict), which `pretrain` fits.
+    The input is a slice tau of h control periods, each period's features (`hipref.control.tool`) one
+    after the other, unnormalised; the model standardises it with its own stored `Normaliser` (buffers, so
+    it travels in the state dict), which `pretrain` fits.
     """
 
     def __init__(

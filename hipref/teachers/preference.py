@@ -74,6 +74,21 @@ def preferred_index(label_vector: np.ndarray) -> int:
     return int(np.argmax(label_vector))
 
 
+def equally_near(distance: np.ndarray, other: np.ndarray | float) -> np.ndarray:
+    """Where two distances to the true parameter count as equal: a tie, which the teacher breaks at
+    random (the candidates' grid puts some exactly midway)."""
+    return np.isclose(distance, other, rtol=1e-9, atol=1e-12)
+
+
+def pair_labels(
+    first: np.ndarray, second: np.ndarray, true_parameter: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The teacher's rule on pairs, before any flip: y = 1 where `first` is nearer the true parameter, -1
+    where `second` is; and where the two are equally near (ties, for the caller to break at random)."""
+    distance_first, distance_second = np.abs(first - true_parameter), np.abs(second - true_parameter)
+    return np.where(distance_first < distance_second, 1, -1), equally_near(distance_first, distance_second)
+
+
 class ScriptedPreferenceTeacher:
     """Prefers the candidate closest to the true parameter; with probability `noise` the answer is flipped.
 
@@ -110,7 +125,7 @@ class ScriptedPreferenceTeacher:
     def closest(self, candidates: tuple[float, ...]) -> int:
         """Index of the candidate nearest the true parameter, ties broken uniformly with the rng."""
         distance = np.abs(np.asarray(candidates, dtype=np.float64) - self.true_parameter)
-        nearest = np.flatnonzero(np.isclose(distance, distance.min(), rtol=1e-9, atol=1e-12))
+        nearest = np.flatnonzero(equally_near(distance, distance.min()))
         return int(nearest[0]) if nearest.size == 1 else int(self.rng.choice(nearest))
 
     def answer(self, query: PreferenceQuery) -> int | np.ndarray:

@@ -1,6 +1,6 @@
 """Simulation speed with the controller in the loop, against bare mj_step on the same compiled model.
 
-    python -m hipref.bench
+    python -m hipref.bench.physics
 
 prints one JSON line: for each task, physics steps per second of the task's low-level policy (admittance,
 IK and SPD compiled around MuJoCo's C API, hipref.control.compiled), of bare `mj_step` called from Python

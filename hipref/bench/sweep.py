@@ -1,6 +1,6 @@
 """How much faster a sweep runs on two local workers than on one.
 
-`python -m hipref.bench_sweep` times the same CPU-bound sweep (8 cells of about 1.5 s of pure-Python
+`python -m hipref.bench.sweep` times the same CPU-bound sweep (8 cells of about 1.5 s of pure-Python
 work, cache disabled) with 1 worker and with 2, takes the median of 3 repeats of each, and prints one JSON
 line. The timings include starting the worker processes, as a real sweep pays for them too.
 """

@@ -1,0 +1,8 @@
+"""Benchmarks: scripts that print figures, never tests that time (`make bench` runs them all).
+
+- `python -m hipref.bench.physics`: physics steps per second with each task's controller in the loop,
+  against bare `mj_step` on the same model.
+- `python -m hipref.bench.sweep`: one CPU-bound sweep with 1 and 2 local workers, and its speed-up.
+
+No row of the study depends on this package, so editing it keeps every cached cell (`hipref.sweep`).
+"""

@@ -1,0 +1,114 @@
+"""The base of every SI study (notebooks 02, 03, 04, 06, 07, 08): a fixed grid of true parameters crossed
+with seeds, the paper's evaluation protocol and Algorithm 4's size."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
+
+from hipref.experiments.domains import domain_spec
+from hipref.experiments.si_pretraining import PretrainData, pretrained_model
+from hipref.experiments.si_run import FineTuning, SIRun
+from hipref.sweep import CacheDir
+from hipref.validation import check_int, check_range
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """What the SI studies share: a fixed grid of true parameters crossed with seeds, the paper's
+    evaluation protocol and Algorithm 4's size.
+
+    Every method of a study meets the same environments (truth, seed) and the same evaluation episodes,
+    so methods are compared as paired differences (`hipref.verdicts`)."""
+
+    heights: tuple[float, ...] = (0.6, 0.8)
+    """True desk heights in m of the wiping environments, each in [0.5, 0.9] (full profile: 5, evenly)."""
+    masses: tuple[float, ...] = (11.0, 17.0)
+    """True cube masses in kg of the pushing environments, each in [8, 20] (full profile: 5, evenly)."""
+    seeds: int = 1
+    """Seeds per true parameter; truths x seeds is the repetitions of the paper (A.7: 15)."""
+    episodes: int = 66
+    """Learning episodes per run, at least 1."""
+    eval_every: int = 33
+    """Learning episodes between evaluations (section 5: 33)."""
+    eval_episodes: int = 10
+    """Evaluation episodes per evaluation (section 5: 10)."""
+    eval_slices: int = 3
+    """Probing slices per evaluation episode (for the multi-slice estimate)."""
+    n_trajectories: int = 100
+    """Algorithm 4 trajectories (A.7: 100)."""
+    pretrain_steps: int = 3000
+    """Adam steps of Algorithm 4."""
+    pretrain_loss: str = "brier"
+    """Algorithm 4's loss: 'brier', 'expectation' or 'brier_expectation' (see `pretrain` of
+    `hipref.learners.sysid`)."""
+    learning_rate: float = 1e-2
+    """Gradient step size of SI fine-tuning (A.7: 0.01)."""
+
+    def __post_init__(self) -> None:
+        for name, values, domain in (("heights", self.heights, "wiping"), ("masses", self.masses, "pushing")):
+            candidates = domain_spec(domain).candidates
+            if not values:
+                raise ValueError(
+                    f"{name} must hold at least one value in [{candidates.low}, {candidates.high}], got ()"
+                )
+            for value in values:
+                check_range(name, value, candidates.low, candidates.high)
+        check_int("seeds", self.seeds, 1)
+        check_int("episodes", self.episodes, 1)
+        check_int("eval_every", self.eval_every, 1, self.episodes)
+        check_int("eval_episodes", self.eval_episodes, 1)
+        check_int("eval_slices", self.eval_slices, 1)
+        FineTuning(learning_rate=self.learning_rate)
+        self.data  # noqa: B018 - validates n_trajectories, pretrain_steps and pretrain_loss
+
+    @property
+    def data(self) -> PretrainData:
+        return PretrainData(self.n_trajectories, pretrain_steps=self.pretrain_steps, loss=self.pretrain_loss)
+
+    def truths(self, domain: str) -> tuple[float, ...]:
+        """The grid of true parameters of `domain`."""
+        return self.heights if domain_spec(domain).name == "wiping" else self.masses
+
+    def environments(self, domain: str) -> list[tuple[float, int]]:
+        """Every (ground truth, seed) of `domain`: the grid crossed with the seeds."""
+        return [(truth, seed) for truth in self.truths(domain) for seed in range(self.seeds)]
+
+    def run_cell(
+        self,
+        domain: str,
+        method: str,
+        truth: float,
+        seed: int,
+        fine_tuning: FineTuning | None = None,
+        **setting: Any,
+    ) -> SIRun:
+        """One run of this protocol; `setting` holds what the study varies (noise, N). OSI learns nothing,
+        so its run ignores the fine-tuning and the noise: one OSI run per environment serves every study."""
+        tuning = fine_tuning if fine_tuning is not None else FineTuning(learning_rate=self.learning_rate)
+        if method == "osi":
+            tuning, setting = FineTuning(), {k: v for k, v in setting.items() if k != "noise"}
+        elif not method.startswith("co_pesi"):
+            # The classifier schedule means nothing without classifiers: such runs share one cache entry.
+            tuning = dataclasses.replace(tuning, coteaching_schedule=FineTuning.coteaching_schedule)
+        return SIRun(
+            domain,
+            method,
+            truth,
+            seed=seed,
+            episodes=self.episodes,
+            eval_every=self.eval_every,
+            eval_episodes=self.eval_episodes,
+            eval_slices=self.eval_slices,
+            fine_tuning=tuning,
+            data=self.data,
+            **setting,
+        )
+
+    def pretrain(self, domains: Iterable[str], cache_dir: CacheDir = None) -> None:
+        """Algorithm 4 once, in this process, cached in `cache_dir` (None: the default directory): the
+        sweep's workers then load the model, not race to build it."""
+        for domain in domains:
+            pretrained_model(domain, self.data, cache_dir)

@@ -1,0 +1,346 @@
+"""One SI run (`run_si`, a sweep cell) in one environment with a fixed, unknown parameter phi.
+
+- Algorithm 2: each learning episode samples N candidates, executes the low-level policy pi^l with each
+  in the world, samples a trajectory slice tau of h control periods, gets the scripted teacher's
+  (possibly flipped) preference and tells the learner, which updates SI (Eq. 2, Eq. 3 or the standard
+  cross-entropy of A.8; Algorithm 1 for CO-PESI). OSI (`si_pretraining`) learns nothing.
+- Evaluation (section 5, 'Performance metrics'): at episode 0 and every 33 learning episodes the learner is
+  frozen and 10 evaluation episodes are run: SI's absolute error on a fresh slice (`param_error`, with two
+  other read-outs) and the success of the task executed with SI's estimate (`success_rate`).
+
+Which estimate drives the slices. In a learning episode the candidates are drawn uniformly from Phi (or,
+as an option, from SI's belief) and tau is a slice of the clip pi^l executes with one of them, every
+candidate's clip starting from the same layout (PESILearner.ask, `hipref.envs.task.clip`). Uniformly drawn
+queries do not depend on what SI has learnt, so one environment's clips are executed once and replayed by
+every method and noise level (`learning_clips`). Every slice SI is evaluated on, and every slice of
+Algorithm 4's data, comes from a probing rollout that pi^l executes with an estimate drawn uniformly from
+the range: OSI is evaluated on the inputs it was trained for.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from hipref.envs.task import Clip, Layout, Task, clip, probe_slice
+from hipref.experiments.domains import domain_spec
+from hipref.experiments.si_pretraining import PretrainData, pretrained_model
+from hipref.learners.coteaching import (
+    CoPESIConfig,
+    CoPESILearner,
+    EstimatedNoiseCoPESILearner,
+    reset_every_step_schedule,
+)
+from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS, PESIConfig, PESILearner
+from hipref.learners.sysid import SIModel
+from hipref.numerics import one_thread
+from hipref.results import tidy_rows
+from hipref.seeds import integer_seed
+from hipref.sweep import Expect, cached_artefact
+from hipref.teachers.preference import ScriptedPreferenceTeacher
+from hipref.validation import check_choice, check_int, check_range
+
+METHODS: tuple[str, ...] = ("osi", "pesi", "pesi_ce", "co_pesi", "co_pesi_estimated")
+"""osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy (A.8); co_pesi:
+Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level estimated by
+Algorithm 5 from the preferences so far (A.9)."""
+
+COTEACHING_SCHEDULES: tuple[str, ...] = ("learned", "reset_every_step")
+"""How CO-PESI's classifiers are refreshed (`hipref.learners.coteaching.CoPESIConfig`): 'learned', the
+refresh counted in preferences with several classifier rounds per preference (default); 'reset_every_step',
+the refresh counted in single co-teaching steps with one round each, under which the classifiers are reset
+before they can learn the (pair -> label) rule."""
+
+
+@dataclass(frozen=True)
+class FineTuning:
+    """How preferences fine-tune SI (Algorithm 2, Eq. 2/3; Algorithm 1 for CO-PESI): the paper's reading by
+    default, the alternatives a sensitivity study compares (notebook 08)."""
+
+    learning_rate: float = 1e-2
+    """Plain gradient step size of SI fine-tuning (A.7: 0.01)."""
+    encourage_percentage: float = 0.25
+    """p of Eq. 2 (A.7: 0.25)."""
+    candidate_sampling: str = "uniform"
+    """'uniform' (Algorithm 2: 'sampled from Phi') or 'belief' (from SI's current distribution)."""
+    pr_domain: str = "query"
+    """Pr of Eq. 2 over the queried candidates ('query') or all of Phi ('all')."""
+    fine_tuned: str = "all"
+    """Which parameters of SI are updated: 'all', 'last_layer' or 'output_bias'."""
+    coteaching_schedule: str = "learned"
+    """CO-PESI's classifier schedule, one of COTEACHING_SCHEDULES."""
+
+    def __post_init__(self) -> None:
+        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
+        check_range("encourage_percentage", self.encourage_percentage, 0.0, 1.0)
+        check_choice("candidate_sampling", self.candidate_sampling, CANDIDATE_SAMPLING)
+        check_choice("pr_domain", self.pr_domain, PR_DOMAINS)
+        check_choice("fine_tuned", self.fine_tuned, FINE_TUNED)
+        check_choice("coteaching_schedule", self.coteaching_schedule, COTEACHING_SCHEDULES)
+
+
+@dataclass(frozen=True)
+class SIRun:
+    """One run (one sweep cell): a method fine-tuning SI in one environment with a fixed true parameter."""
+
+    domain: str
+    """'wiping' (desk height) or 'pushing' (cube mass)."""
+    method: str
+    """One of METHODS."""
+    ground_truth: float
+    """The environment's true parameter, inside the domain's range."""
+    noise: float = 0.0
+    """Fraction of flipped preferences, in [0, 1]."""
+    seed: int = 0
+    """Seed of the teacher, the learner and the evaluation, together with the ground truth: the same seed
+    and truth give every method the same teacher draws and the same evaluation episodes."""
+    n_candidates: int = 2
+    """N, candidates per query (Eq. 3, A.2); CO-PESI needs 2."""
+    episodes: int = 99
+    """Learning episodes (preferences asked), at least 1."""
+    eval_every: int = 33
+    """Learning episodes between evaluations (section 5: 33)."""
+    eval_episodes: int = 10
+    """Evaluation episodes per evaluation (section 5: 10)."""
+    eval_slices: int = 3
+    """Probing slices per evaluation episode; the first drives the task attempt, all of them the
+    multi-slice estimate."""
+    fine_tuning: FineTuning = FineTuning()
+    """How preferences update SI."""
+    data: PretrainData = PretrainData()
+    """Algorithm 4's data and pretraining, shared by every run with the same value."""
+
+    def __post_init__(self) -> None:
+        spec = domain_spec(self.domain)
+        check_choice("method", self.method, METHODS)
+        check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
+        check_range("noise", self.noise, 0.0, 1.0)
+        check_int("seed", self.seed, 0)
+        check_int("n_candidates", self.n_candidates, 2, spec.candidates.size)
+        if self.method.startswith("co_pesi") and self.n_candidates != 2:
+            raise ValueError(
+                f"n_candidates must be 2 for co_pesi (pair classifiers), got {self.n_candidates}"
+            )
+        check_int("episodes", self.episodes, 1)
+        check_int("eval_every", self.eval_every, 1, self.episodes)
+        check_int("eval_episodes", self.eval_episodes, 1)
+        check_int("eval_slices", self.eval_slices, 1)
+
+
+def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
+    """The learner of `cell.method` on a copy of the pretrained model; None for OSI (no updates)."""
+    spec = domain_spec(cell.domain)
+    tuning = cell.fine_tuning
+    common = dict(
+        encourage_percentage=tuning.encourage_percentage,
+        learning_rate=tuning.learning_rate,
+        batch_size=spec.batch_size,
+        n_candidates=cell.n_candidates,
+        history=cell.data.history,
+        candidate_sampling=tuning.candidate_sampling,
+        pr_domain=tuning.pr_domain,
+        fine_tuned=tuning.fine_tuned,
+    )
+    if cell.method == "osi":
+        return None
+    if cell.method in ("pesi", "pesi_ce"):
+        loss = "soft" if cell.method == "pesi" else "standard"
+        return PESILearner(model, PESIConfig(loss=loss, **common), seed)
+    schedule = CoPESIConfig if tuning.coteaching_schedule == "learned" else reset_every_step_schedule
+    config = schedule(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
+    if cell.method == "co_pesi_estimated":
+        # A.9: the forget number comes from Algorithm 5 on the preferences so far, not the true noise.
+        return EstimatedNoiseCoPESILearner(model, config, seed)
+    return CoPESILearner(model, cell.noise, config, seed)
+
+
+class RunStreams(NamedTuple):
+    """A run's independent random streams, children of its (seed, ground truth) SeedSequence."""
+
+    teacher: np.random.SeedSequence
+    learner: np.random.SeedSequence
+    learning: np.random.SeedSequence
+    evaluation: np.random.SeedSequence
+
+
+def run_streams(seed: int, ground_truth: float) -> RunStreams:
+    """The streams of the environment (seed, ground truth): two truths of a grid never share draws."""
+    micro = round(ground_truth * 1_000_000)
+    return RunStreams(*np.random.SeedSequence([seed, micro]).spawn(4))
+
+
+@dataclass(frozen=True)
+class EvaluationSpec:
+    """What a run's evaluation episodes depend on: not the method, the noise level or N."""
+
+    domain: str
+    ground_truth: float
+    seed: int
+    """The run's seed, whose `run_streams(seed, ground_truth).evaluation` seeds the evaluations."""
+    checkpoints: int
+    eval_episodes: int
+    slices: int
+    history: int
+
+
+class Episode(NamedTuple):
+    """An evaluation episode: the probing slices SI estimates from, and the layout the task is then
+    attempted in."""
+
+    slices: np.ndarray
+    """(slices, input_dim): the first drives the attempt; all of them the multi-slice estimate."""
+    layout: Layout
+
+
+def evaluation_episodes(task: Task, spec: EvaluationSpec) -> list[list[Episode]]:
+    """Per checkpoint, its evaluation episodes, drawn from the checkpoint's own seed. Every method, noise
+    level and N of one environment meets the same episodes, so they are built once (cached) and the
+    methods' runs differ only in what SI makes of them: comparisons between methods are paired."""
+
+    def build() -> list[list[Episode]]:
+        checkpoints = []
+        for seq in run_streams(spec.seed, spec.ground_truth).evaluation.spawn(spec.checkpoints):
+            rng = np.random.default_rng(seq)
+            episodes = []
+            for _ in range(spec.eval_episodes):
+                taus = [probe_slice(task, spec.ground_truth, spec.history, rng) for _ in range(spec.slices)]
+                episodes.append(Episode(np.stack(taus), task.sample_layout(rng)))
+            checkpoints.append(episodes)
+        return checkpoints
+
+    def complete(checkpoints: list[list[Episode]]) -> bool:
+        return len(checkpoints) == spec.checkpoints and all(
+            len(episodes) == spec.eval_episodes and all(len(e.slices) == spec.slices for e in episodes)
+            for episodes in checkpoints
+        )
+
+    return cached_artefact(f"si_evaluation_{spec.domain}", spec, build, expect=Expect(list, complete))
+
+
+@dataclass(frozen=True)
+class LearningSpec:
+    """What the clips of a run's learning episodes depend on when its candidates are drawn uniformly: not
+    the method, the noise level or how SI is fine-tuned."""
+
+    domain: str
+    ground_truth: float
+    seed: int
+    """The run's seed; with the ground truth it seeds the learner's queries and the layouts."""
+    episodes: int
+    n_candidates: int
+    history: int
+
+
+def learning_clips(task: Task, spec: LearningSpec, model: SIModel) -> list[Clip]:
+    """Per learning episode, the clip its query observes, executed once per environment (cached).
+
+    With candidates drawn uniformly from Phi (Algorithm 2), what a learner asks never depends on what SI has
+    learnt or on the answers: the candidates, the layout and the slice's place come from the run's own
+    streams. So every method, noise level and fine-tuning of one environment executes the same clips, and
+    they are executed once, by a learner that only asks; runs replay them (`Clip.replay`) with their own
+    learners, whose queries are checked against them. The rows are those of executing every run's clips.
+    """
+
+    def build() -> list[Clip]:
+        truth, h = spec.ground_truth, spec.history
+        _, learner_seq, learn_seq, _ = run_streams(spec.seed, truth)
+        config = PESIConfig(n_candidates=spec.n_candidates, history=spec.history)
+        asker = PESILearner(model, config, integer_seed(learner_seq))
+        learn_rng = np.random.default_rng(learn_seq)
+        clips: list[Clip] = []
+
+        for _ in range(spec.episodes):
+            layout = task.sample_layout(learn_rng)
+            asker.ask(lambda phi, rng, layout=layout: _record(clips, clip(task, truth, phi, layout, h, rng)))
+        return clips
+
+    def complete(clips: list[Clip]) -> bool:
+        return len(clips) == spec.episodes and all(isinstance(c, Clip) for c in clips)
+
+    return cached_artefact(f"si_learning_{spec.domain}", spec, build, expect=Expect(list, complete))
+
+
+def _record(clips: list[Clip], clip: Clip) -> np.ndarray:
+    clips.append(clip)
+    return clip.tau
+
+
+def evaluate(task: Task, model: SIModel, episodes: list[Episode], ground_truth: float) -> dict[str, float]:
+    """SI frozen on one checkpoint's episodes: its errors by three read-outs, and the task's success.
+
+    param_error: |E_Pr[phi] - phi| on the first slice, the estimate the controller is given and the task
+    attempted with (success_rate). param_error_argmax: the most probable candidate instead of the mean.
+    param_error_multislice: the mean of E_Pr[phi] over all the episode's slices, less sensitive to one
+    unlucky slice.
+    """
+    errors: dict[str, list[float]] = {
+        "param_error": [],
+        "param_error_argmax": [],
+        "param_error_multislice": [],
+    }
+    successes = []
+    for episode in episodes:
+        expectations = model.predict(episode.slices)
+        phi_hat = float(expectations[0])
+        errors["param_error"].append(abs(phi_hat - ground_truth))
+        errors["param_error_argmax"].append(abs(float(model.predict_mode(episode.slices[0])) - ground_truth))
+        errors["param_error_multislice"].append(abs(float(expectations.mean()) - ground_truth))
+        successes.append(task.rollout(ground_truth, phi_hat, episode.layout).success)
+    return {**{k: float(np.mean(v)) for k, v in errors.items()}, "success_rate": float(np.mean(successes))}
+
+
+def run_si(cell: SIRun) -> pd.DataFrame:
+    """One run of `cell` (a sweep cell function): tidy rows of every metric per evaluation.
+
+    CO-PESI runs also report the precision and recall of their filter against the flips the scripted
+    teacher recorded (never shown to the learner), counted over the learning so far.
+    """
+    model = pretrained_model(cell.domain, cell.data)
+    with one_thread():
+        teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed, cell.ground_truth)
+        truth = cell.ground_truth
+        task = domain_spec(cell.domain).make_task()
+        teacher = ScriptedPreferenceTeacher(truth, cell.noise, np.random.default_rng(teacher_seq))
+        learner = make_learner(cell, model, integer_seed(learner_seq))
+        learn_rng = np.random.default_rng(learn_seq)
+        h = cell.data.history
+        n_checkpoints = cell.episodes // cell.eval_every + 1
+        spec = EvaluationSpec(
+            cell.domain, truth, cell.seed, n_checkpoints, cell.eval_episodes, cell.eval_slices, h
+        )
+        checkpoints = evaluation_episodes(task, spec)
+        clips = None
+        if learner is not None and cell.fine_tuning.candidate_sampling == "uniform":
+            learning = LearningSpec(cell.domain, truth, cell.seed, cell.episodes, cell.n_candidates, h)
+            clips = learning_clips(task, learning, model)
+        rows: list[tuple[int, str, float]] = []
+        for episode in range(cell.episodes + 1):
+            if episode % cell.eval_every == 0:
+                current = model if learner is None else learner.model
+                metrics = evaluate(task, current, checkpoints[episode // cell.eval_every], truth)
+                if isinstance(learner, CoPESILearner):
+                    precision, recall = learner.filter_precision_recall(teacher.flipped)
+                    metrics |= {"filter_precision": precision, "filter_recall": recall}
+                rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
+            if episode == cell.episodes or learner is None:
+                continue
+            # Algorithm 2: execute pi^l with the candidates from one layout, sample a slice tau, ask for a
+            # preference y, update SI (Eq. 2/3).
+            if clips is not None:
+                query = learner.ask(lambda phi, rng, recorded=clips[episode]: recorded.replay(phi, h, rng))
+            else:
+                layout = task.sample_layout(learn_rng)
+                query = learner.ask(lambda phi, rng, at=layout: clip(task, truth, phi, at, h, rng).tau)
+            learner.tell(query, teacher.answer(query))
+    return tidy_rows(
+        rows,
+        domain=cell.domain,
+        method=cell.method,
+        noise=cell.noise,
+        seed=cell.seed,
+        ground_truth=round(truth, 6),
+        n_candidates=cell.n_candidates,
+    )

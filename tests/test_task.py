@@ -1,0 +1,64 @@
+"""The Task interface both worlds implement, and the slices SI sees cut from it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hipref.envs.pushing import PushingTask
+from hipref.envs.task import Rollout, Task, clip, probe_slice
+from hipref.envs.wiping import WipingTask
+
+TASKS = {"wiping": WipingTask, "pushing": PushingTask}
+
+
+@pytest.fixture(scope="module", params=list(TASKS))
+def task(request) -> Task:
+    return TASKS[request.param]()
+
+
+def test_a_task_rolls_out_from_a_layout_it_samples(task):
+    low, high = task.parameter_range
+    layout = task.sample_layout(np.random.default_rng(3))
+    rollout = task.rollout(low + 0.4 * (high - low), low + 0.5 * (high - low), layout)
+    assert isinstance(rollout, Rollout)
+    assert rollout.features.ndim == 2 and rollout.features.shape[1] == 21
+    planned = task.planned_periods(layout)
+    assert planned is None or planned == len(rollout.features)
+
+
+@pytest.mark.parametrize(("domain", "truth", "estimate"), [("wiping", 0.62, 0.66), ("pushing", 12.0, 15.0)])
+def test_a_slice_is_cut_from_the_whole_clip_at_a_uniform_place(domain, truth, estimate):
+    # In wiping only the periods up to the slice's end are simulated; they must be the whole clip's.
+    task = TASKS[domain]()
+    layout = task.sample_layout(np.random.default_rng(5))
+    whole = task.rollout(truth, estimate, layout).features
+    firsts = []
+    for seed in range(40):
+        tau = clip(task, truth, estimate, layout, 3, np.random.default_rng(seed)).tau
+        first = int(np.random.default_rng(seed).integers(0, len(whole) - 2))
+        np.testing.assert_array_equal(tau, whole[first : first + 3].reshape(-1))
+        firsts.append(first)
+    assert max(firsts) > len(whole) / 2  # slices from the clip's second half too
+
+
+def test_a_replayed_clip_refuses_a_query_it_was_not_executed_for():
+    task = WipingTask()
+    layout = task.sample_layout(np.random.default_rng(0))
+    executed = clip(task, 0.7, 0.6, layout, 3, np.random.default_rng(1))
+    np.testing.assert_array_equal(executed.replay(0.6, 3, np.random.default_rng(1)), executed.tau)
+    with pytest.raises(RuntimeError, match="depend on what the learner has learnt"):
+        executed.replay(0.62, 3, np.random.default_rng(1))
+
+
+def test_a_push_is_executed_whole():
+    task = PushingTask()
+    layout = task.sample_layout(np.random.default_rng(0))
+    with pytest.raises(ValueError, match="executed whole"):
+        task.rollout(12.0, 12.0, layout, periods=5)
+
+
+def test_a_probing_slice_has_h_periods_of_features(task):
+    low, high = task.parameter_range
+    tau = probe_slice(task, (low + high) / 2, 3, np.random.default_rng(2))
+    assert tau.shape == (3 * 21,)
