@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hipref.sweep import run_sweep
+from hipref.sweep import cached_artefact, run_sweep
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,12 @@ def toy_cell(cell: ToyCell) -> pd.DataFrame:
             "value": rng.normal(size=episodes.size) / (1 + episodes),
         }
     )
+
+
+def artefact_cell(cell: ToyCell) -> pd.DataFrame:
+    """`toy_cell`'s rows, shifted by a shared artefact the cell builds (or finds) in the sweep's cache."""
+    offset = cached_artefact("toy_offset", cell.seed, lambda: float(cell.seed), expect=float)
+    return toy_cell(cell).assign(value=lambda rows: rows.value + offset)
 
 
 def executions(log_dir: str | os.PathLike[str], pid: int | None = None) -> list[int]:

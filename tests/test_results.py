@@ -11,10 +11,12 @@ from matplotlib.figure import Figure
 
 from hipref import results
 from hipref.results import (
+    TIDY_COLUMNS,
     check_tidy,
     claims_table,
     results_dir,
     save_figure,
+    tidy_rows,
     update_claims,
     write_csv,
     write_text,
@@ -142,3 +144,19 @@ def test_results_dir(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     assert results_dir() == tmp_path / "elsewhere"
     update_claims("01_x", "claim", None)
     assert (tmp_path / "elsewhere" / "claims.md").is_file()
+
+
+def test_tidy_rows_put_the_tidy_columns_first_then_the_others_in_the_order_given() -> None:
+    rows = tidy_rows(
+        [(0, "cells_wiped", 3.0, 12), (1, "cells_wiped", 5.0, 9)],
+        ("episode", "metric", "value", "decisions"),
+        domain="wiping",
+        method="tabular_coach",
+        noise=0.0,
+        seed=4,
+        ground_truth=0.7,
+    )
+    assert list(rows.columns) == [*TIDY_COLUMNS, "decisions", "ground_truth"]
+    assert rows.episode.tolist() == [0, 1] and rows.seed.tolist() == [4, 4]
+    with pytest.raises(ValueError, match="tidy column"):
+        tidy_rows([(0, "cells_wiped", 3.0)], domain="wiping", method="m", noise=0.0)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import os
 import pickle
 import signal
@@ -19,6 +20,7 @@ from hipref.sweep import SweepError, cached_artefact, cell_key, run_sweep
 from tests._sweep_cells import (
     ThreadsCell,
     ToyCell,
+    artefact_cell,
     executing_pids,
     executions,
     resume_cells,
@@ -236,6 +238,30 @@ def test_code_version_names_the_package_version() -> None:
 
     assert sweep.code_version().startswith(hipref.__version__ + "+")
     assert sweep.code_version() is sweep.code_version()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_artefacts_of_a_sweeps_cells_go_to_its_cache_dir(
+    tmp_path: Path, workers: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(tmp_path / "default"))
+    cache = tmp_path / "cache"
+    cells = [ToyCell(seed=10 * workers + s) for s in (1, 2)]  # seeds no other test builds in this process
+    rows = run_sweep(artefact_cell, cells, cache_dir=cache, workers=workers)
+    assert len(list((cache / "artefacts").glob("toy_offset-*.pkl"))) == 2
+    assert not (tmp_path / "default").exists()
+    pd.testing.assert_frame_equal(rows, run_sweep(artefact_cell, cells, cache_dir=sweep.NO_CACHE, workers=1))
+
+
+def test_the_cache_key_ignores_docstrings_and_comments_but_not_code() -> None:
+    def tree(source: str) -> str:
+        return ast.dump(sweep._without_docstrings(ast.parse(source)))
+
+    base = 'def f(x):\n    """Doubles."""\n    return 2 * x\n'
+    assert tree(base) == tree('def f(x):\n    """Twice x."""\n    # the double\n    return 2 * x\n')
+    assert tree(base) == tree("def f(x):\n    return 2 * x\n")
+    assert tree(base) != tree('def f(x):\n    """Doubles."""\n    return 3 * x\n')
+    assert "bench" in sweep.NOT_IN_ROWS and "plots.py" in sweep.NOT_IN_ROWS
 
 
 def test_default_cache_dir(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:

@@ -23,6 +23,8 @@ from hipref.validation import check_vector
 FEATURES_PER_PERIOD = 21
 """What the SI model sees of one control period: joint positions (6), joint velocities (6), wrist force (3)
 and joint reference (6)."""
+ARM_POSITIONS = slice(0, 6)
+"""The columns of a period's features holding the arm's joint positions (rad)."""
 WRIST_FORCE = slice(12, 15)
 """The columns of a period's features holding the wrist force (x, y, z in the world frame, N)."""
 FORCE_Z = 14

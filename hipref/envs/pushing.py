@@ -34,9 +34,10 @@ from hipref.control.admittance import AdmittanceGains
 from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.push import PushPlan, execute_push
-from hipref.control.tool import ControllerConfig, ToolController
+from hipref.control.tool import ARM_POSITIONS, ControllerConfig, ToolController
 from hipref.envs.task import Layout, Rollout
 from hipref.sim.config import SceneConfig
+from hipref.sim.render import clip_frames
 from hipref.sim.scene import Scene, make_scene
 from hipref.validation import check_int, check_interval, check_parameter, check_range
 
@@ -196,6 +197,17 @@ class PushingTask:
         self.reset(true_parameter, start, goal)
         push = self.push(estimate)
         return Rollout(push.features, bool(push.success))
+
+    def clip_frames(
+        self, true_parameter: float, estimate: float, layout: Layout, every: int = 4
+    ) -> list[np.ndarray] | None:
+        """The push of `rollout` as images, one every `every` control periods, the cube at its recorded
+        place; None where no GL is."""
+        check_int("every", every, 1)
+        start, goal = layout
+        self.reset(true_parameter, start, goal)
+        push = self.push(estimate)
+        return clip_frames(self.scene, push.features[::every, ARM_POSITIONS], push.cube_xy[::every])
 
     # --- layout ---------------------------------------------------------------------------------------
 

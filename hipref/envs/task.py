@@ -51,6 +51,13 @@ class Task(Protocol):
         not None."""
         ...
 
+    def clip_frames(
+        self, true_parameter: float, estimate: float, layout: Layout, every: int = 4
+    ) -> list[np.ndarray] | None:
+        """The clip of `rollout` as images, one every `every` control periods (`hipref.sim.render`); None
+        where no GL is."""
+        ...
+
 
 class Clip(NamedTuple):
     """What a query observes of the clip pi^l executes with one candidate: its slice tau."""

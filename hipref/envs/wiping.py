@@ -16,11 +16,12 @@ import numpy as np
 
 from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
-from hipref.control.tool import FORCE_Z, ControllerConfig, ToolController
+from hipref.control.tool import ARM_POSITIONS, FORCE_Z, ControllerConfig, ToolController
 from hipref.envs.task import Layout, Rollout
 from hipref.sim.config import SceneConfig
+from hipref.sim.render import clip_frames
 from hipref.sim.scene import Scene, make_scene
-from hipref.validation import check_interval, check_parameter, check_range
+from hipref.validation import check_int, check_interval, check_parameter, check_range
 
 HOVER_CLEARANCE = 0.03
 """Least height in m of the tool tip at reset above the highest desk of the range."""
@@ -161,6 +162,14 @@ class WipingTask:
         self.reset(true_parameter, (float(start[0]), float(start[1])))
         stroke = self.stroke(goal, estimate, periods=periods)
         return Rollout(stroke.features, bool(stroke.success))
+
+    def clip_frames(
+        self, true_parameter: float, estimate: float, layout: Layout, every: int = 4
+    ) -> list[np.ndarray] | None:
+        """The stroke of `rollout` as images, one every `every` control periods; None where no GL is."""
+        check_int("every", every, 1)
+        features = self.rollout(true_parameter, estimate, layout).features
+        return clip_frames(self.scene, features[::every, ARM_POSITIONS])
 
     def observation(self) -> np.ndarray:
         """The features of the current state, laid out as each period's in `Stroke.features`."""
