@@ -31,8 +31,9 @@ def clip_frames(
     """The frames of a recorded clip, one per row of `arm_positions` (the arm's joint positions), with the
     cube (if any) moved to the row's `cube_xy` on the desk; or None, with the reason printed, without GL.
 
-    Each frame poses a copy of the scene's current state by kinematics alone (bodies, camera, lights), so the clip is shown as it
-    was recorded, not simulated again; the cube keeps its current height and orientation."""
+    Each frame poses a copy of the scene's current state by kinematics alone (bodies, camera, lights), so
+    the clip is shown as it was recorded, not simulated again; the cube keeps its current height and
+    orientation."""
     data = mujoco.MjData(scene.model)
     data.qpos[:] = scene.data.qpos
     try:
