@@ -8,6 +8,7 @@ import pytest
 
 from hipref.experiments import noise_estimation
 from hipref.experiments.noise_estimation import (
+    ESTIMATORS,
     METHODS,
     PAPER_TABLE3,
     TABLE3_COLUMNS,
@@ -65,24 +66,28 @@ def test_table3_has_one_column_per_reading_beside_the_papers() -> None:
     )
 
 
-def test_rows_are_tidy_with_one_estimate_and_one_true_noise_per_dataset_and_reading() -> None:
+def test_rows_are_tidy_with_one_estimate_and_one_true_noise_per_dataset_and_estimator() -> None:
     rows = check_tidy(run(SMALL))
     assert set(TIDY_COLUMNS) <= set(rows.columns)
-    assert set(rows["method"]) == set(METHODS.values()) and set(rows["episode"]) == {0}
+    methods = {*METHODS.values(), *ESTIMATORS}
+    assert set(rows["method"]) == methods and set(rows["episode"]) == {0}
     counts = rows.groupby(["noise", "method", "metric"]).size()
-    assert (counts == SMALL.repetitions).all() and len(counts) == 2 * len(CONFLICTS) * len(SMALL.noise_levels)
+    assert (counts == SMALL.repetitions).all() and len(counts) == 2 * len(methods) * len(SMALL.noise_levels)
     truth = rows[rows["metric"] == "true_noise"]
     assert (truth["value"] == truth["noise"]).all()
     assert set(rows["n_candidates"]) == {5}
 
 
-def test_both_readings_estimate_the_same_datasets() -> None:
+def test_every_estimator_estimates_the_same_datasets() -> None:
     rows = run(SMALL).set_index(["noise", "seed", "method", "metric"])["value"]
     for true_noise, repetition in ((0.1, 0), (0.4, 4)):
         rng = dataset_rng(SMALL.seed, true_noise, repetition)
         data = random_preferences(SMALL.n_preferences, true_noise, SMALL.candidates, rng)
         for conflict, method in METHODS.items():
             assert rows[(true_noise, repetition, method, "estimated_noise")] == estimate_noise(data, conflict)
+        for method, estimator in ESTIMATORS.items():
+            estimate = estimator(data, SMALL.candidates)
+            assert rows[(true_noise, repetition, method, "estimated_noise")] == estimate
 
 
 def test_the_candidates_are_the_papers_example_unless_told_otherwise() -> None:

@@ -4,18 +4,22 @@ For every true noise level, `repetitions` datasets of `n_preferences` random pai
 drawn (`random_preferences`: a true parameter uniform over the candidate range, random pairs of distinct
 candidates, each label flipped with probability equal to the true noise) and Algorithm 5 estimates the
 fraction of flipped labels under each reading of a conflict (`hipref.learners.noise_estimation.CONFLICTS`),
-on the same datasets. Table 3 is the mean estimate per true noise level, one column per reading.
+on the same datasets. Table 3 is the mean estimate per true noise level, one column per reading. Two
+estimators beside Algorithm 5 (`hipref.learners.noise_rate`: the maximum marginal likelihood and the
+repeated-pair disagreement) estimate from the same datasets; `accuracy` gives each method's bias and error
+per level.
 
 The candidates are those of A.9's only example ("0.5m ... than 0.6m"), 0.1 m apart on [0.5, 0.9] m, unless
 `candidate_spacing` says otherwise: how often two preferences compare the same pair, hence how many
 conflicts the same-pair reading finds, depends on how many candidates there are.
 
-Each dataset takes a fraction of a millisecond, so the whole table (7 x 100 datasets, two readings) runs
-in this process in about a second: a pool of workers would cost more in process start-up than it saves.
+Each dataset takes about a millisecond, so the whole table (7 x 100 datasets, four estimates each) runs in
+this process in a few seconds: a pool of workers would cost more in process start-up than it saves.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,6 +28,7 @@ import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
 from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
+from hipref.learners.noise_rate import likelihood_noise, repeated_pair_noise
 from hipref.learners.sysid import CandidateSet
 from hipref.results import tidy_rows
 from hipref.sweep import run_sweep
@@ -50,6 +55,13 @@ PAPER_EXAMPLE_SPACING = 0.1
 
 METHODS: dict[str, str] = {conflict: f"algorithm5_{conflict}" for conflict in CONFLICTS}
 """The `method` of the rows of each reading of a conflict."""
+
+ESTIMATORS: dict[str, Callable[[PreferenceSet, CandidateSet], float]] = {
+    "marginal_likelihood": lambda preferences, grid: likelihood_noise(preferences, grid.low, grid.high),
+    "repeated_pair": lambda preferences, grid: repeated_pair_noise(preferences),
+}
+"""The estimators beside Algorithm 5 (`hipref.learners.noise_rate`), by the `method` of their rows: they
+estimate from the same datasets."""
 
 TABLE3_COLUMNS: tuple[str, ...] = (
     "true_noise",
@@ -159,8 +171,9 @@ def run_noise_level(cell: NoiseLevelCell) -> pd.DataFrame:
     for repetition in range(config.repetitions):
         rng = dataset_rng(config.seed, true_noise, repetition)
         preferences = random_preferences(config.n_preferences, true_noise, candidates, rng)
-        for conflict, method in METHODS.items():
-            estimate = estimate_noise(preferences, conflict)
+        estimates = {method: estimate_noise(preferences, conflict) for conflict, method in METHODS.items()}
+        estimates |= {method: estimate(preferences, candidates) for method, estimate in ESTIMATORS.items()}
+        for method, estimate in estimates.items():
             for metric, value in (("estimated_noise", estimate), ("true_noise", true_noise)):
                 rows.append((method, float(true_noise), repetition, metric, float(value)))
     return tidy_rows(
@@ -194,6 +207,33 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
             column = stats[stat].get(method, np.nan)
             table[f"estimated_noise_{conflict}{suffix}"] = np.asarray(column, dtype=float)
     return table[list(TABLE3_COLUMNS)]
+
+
+ACCURACY_COLUMNS: tuple[str, ...] = (
+    "true_noise",
+    "method",
+    "bias",
+    "bias_low",
+    "bias_high",
+    "rmse",
+    "datasets",
+)
+"""Columns of `accuracy`."""
+
+
+def accuracy(rows: pd.DataFrame, *, resamples: int = 2000, seed: int = 0) -> pd.DataFrame:
+    """Per method and true noise level: the bias (mean of estimate - true noise over the datasets) with a
+    95% bootstrap interval, and the root mean squared error. A dataset an estimator cannot read (the
+    repeated-pair estimator without a repeated pair) is left out of its method's figures."""
+    table = []
+    for (method, noise), group in rows.groupby(["method", "noise"], sort=True):
+        error = _per_dataset(group, relative=False).dropna().to_numpy()
+        if len(error) == 0:
+            continue
+        bias = bootstrap_mean(error, resamples=resamples, seed=seed)
+        rmse = float(np.sqrt(np.mean(error**2)))
+        table.append((float(noise), method, bias.mean, bias.low, bias.high, rmse, len(error)))
+    return pd.DataFrame(table, columns=list(ACCURACY_COLUMNS))
 
 
 def table3(config: NoiseEstimationConfig) -> pd.DataFrame:
