@@ -69,3 +69,4 @@ lab: install
 bench: install
 	$(PY) -m hipref.bench.physics
 	$(PY) -m hipref.bench.sweep
+	$(PY) -m hipref.bench.clips

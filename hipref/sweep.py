@@ -9,7 +9,8 @@ byte-identical whichever backend and however many workers.
 Each finished cell is pickled under the cache directory with a key hashing the function, the config and
 the code the rows depend on (`code_version`), so an interrupted sweep resumes where it stopped and a changed
 algorithm never reuses stale rows. `cached_artefact` does the same for expensive shared objects (an SI
-pre-training dataset, a pretrained model, demonstrations).
+pre-training dataset, a pretrained model, demonstrations), and `cached_prefix` for lists of them that
+studies of different lengths share (evaluation checkpoints, learning clips).
 
 A cache entry is used only if it holds what would be computed: a cell's entry must be a DataFrame with
 the tidy columns, an artefact's whatever its caller's `expect` says; anything else (a damaged, stale or
@@ -483,6 +484,49 @@ def cached_artefact(
             _store(path, value)
     _ARTEFACTS[key] = value
     return value
+
+
+def cached_prefix(
+    name: str,
+    config: Any,
+    length: int,
+    build: Callable[[int], list[T]],
+    *,
+    check: Callable[[T], bool] | None = None,
+    cache_dir: CacheDir = None,
+) -> list[T]:
+    """The first `length` items of a list artefact whose items do not depend on how many are built (item
+    k of a build of n items is item k of any longer build), such as evaluation checkpoints drawn from the
+    children of one SeedSequence: a study that needs fewer items than another reads the other's.
+
+    One entry per (name, config), cached like `cached_artefact`'s, serves every length up to its own; a
+    request for more builds `build(length)` and replaces it. `check` is what every item must satisfy for
+    an entry to be used (an entry that fails it is rebuilt, with a warning)."""
+    if length < 0:
+        raise ValueError(f"length must be at least 0, got {length}")
+    key = _key(name, _describe(config))
+    held = _ARTEFACTS.get(key)
+    if held is None or len(held) < length:
+        directory = _resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
+        path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
+
+        def problem(value: Any) -> str | None:
+            if not isinstance(value, list):
+                return f"it holds {type(value).__name__}, expected a list"
+            if check is not None and not all(check(item) for item in value):
+                return "an item fails its check"
+            return None
+
+        found, held = (False, None) if path is None else _load(path, problem)
+        if not found or len(held) < length:
+            held = build(length)
+            reason = problem(held)
+            if reason is not None or len(held) != length:
+                raise TypeError(f"artefact {name!r} was built but not cached, as {reason or 'its length'}")
+            if path is not None:
+                _store(path, held)
+        _ARTEFACTS[key] = held
+    return held[:length]
 
 
 def forget_artefacts() -> None:

@@ -264,6 +264,23 @@ def test_the_cache_key_ignores_docstrings_and_comments_but_not_code() -> None:
     assert "bench" in sweep.NOT_IN_ROWS and "plots.py" in sweep.NOT_IN_ROWS
 
 
+def test_a_prefix_artefact_serves_every_shorter_length_and_grows_on_demand(tmp_path: Path) -> None:
+    builds: list[int] = []
+
+    def build(count: int) -> list[int]:
+        builds.append(count)
+        return [10 * k for k in range(count)]
+
+    def get(length: int) -> list[int]:
+        config = ("prefix test", str(tmp_path))
+        return sweep.cached_prefix("tens_prefix", config, length, build, cache_dir=tmp_path)
+
+    assert get(3) == [0, 10, 20] and get(2) == [0, 10] and builds == [3]
+    assert get(5) == [0, 10, 20, 30, 40] and builds == [3, 5]
+    sweep._ARTEFACTS.clear()  # a new process: read back from disk
+    assert get(4) == [0, 10, 20, 30] and builds == [3, 5]
+
+
 def test_default_cache_dir(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.delenv("HIPREF_CACHE_DIR", raising=False)
     assert sweep.default_cache_dir() == REPO / ".cache" / "hipref"

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import os
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
 
+from hipref import sweep
 from hipref.envs.task import Clip
 from hipref.envs.wiping import WipingTask
 from hipref.experiments import si_run
@@ -125,7 +130,27 @@ def test_the_protocol_crosses_a_fixed_grid_of_truths_with_seeds_and_osi_ignores_
 def test_two_truths_with_one_seed_draw_different_evaluation_episodes():
     task = WipingTask()
     first, second = (
-        evaluation_episodes(task, EvaluationSpec("wiping", truth, 0, 1, 2, 2, 3))[0] for truth in (0.6, 0.8)
+        evaluation_episodes(task, EvaluationSpec("wiping", truth, 0, 2, 2, 3), 1)[0] for truth in (0.6, 0.8)
     )
     assert not np.array_equal(first[0].layout[0], second[0].layout[0])
     assert first[0].slices.shape == (2, 3 * first[0].slices.shape[1] // 3)
+
+
+def test_a_run_with_fewer_episodes_reads_the_start_of_a_longer_ones_clips_and_checkpoints(monkeypatch):
+    # Built afresh, a two-checkpoint evaluation is the start of a three-checkpoint one.
+    task = WipingTask()
+    spec = EvaluationSpec("wiping", 0.66, 4, 1, 1, 3)
+    longer = evaluation_episodes(task, spec, 3)
+    sweep._ARTEFACTS.clear()
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(Path(os.environ["HIPREF_CACHE_DIR"]) / "other"))
+    shorter = evaluation_episodes(task, spec, 2)
+    for a, b in zip(longer[:2], shorter, strict=True):
+        np.testing.assert_array_equal(a[0].slices, b[0].slices)
+    # So a short run replaying a long run's clips and checkpoints gives the rows of executing its own.
+    short = SIRun("wiping", "pesi", 0.66, noise=0.1, seed=4, episodes=4, eval_every=2, eval_episodes=1,
+                  data=TINY)
+    run_si(dataclasses.replace(short, episodes=8))
+    replayed = run_si(short)
+    sweep._ARTEFACTS.clear()
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(Path(os.environ["HIPREF_CACHE_DIR"]) / "fresh"))
+    pd.testing.assert_frame_equal(replayed, run_si(short))

@@ -3,6 +3,8 @@
 - `python -m hipref.bench.physics`: physics steps per second with each task's controller in the loop,
   against bare `mj_step` on the same model.
 - `python -m hipref.bench.sweep`: one CPU-bound sweep with 1 and 2 local workers, and its speed-up.
+- `python -m hipref.bench.clips`: a noise sweep of SI runs with each environment's learning clips replayed
+  against executed by every run.
 
 No row of the study depends on this package, so editing it keeps every cached cell (`hipref.sweep`).
 """

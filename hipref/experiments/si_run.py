@@ -39,7 +39,7 @@ from hipref.learners.sysid import SIModel
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import integer_seed
-from hipref.sweep import Expect, cached_artefact
+from hipref.sweep import cached_prefix
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_int, check_range
 
@@ -174,13 +174,13 @@ def run_streams(seed: int, ground_truth: float) -> RunStreams:
 
 @dataclass(frozen=True)
 class EvaluationSpec:
-    """What a run's evaluation episodes depend on: not the method, the noise level or N."""
+    """What a run's evaluation episodes depend on: not the method, the noise level, N or how many
+    checkpoints the run has (checkpoint k is the same in a short run and a long one)."""
 
     domain: str
     ground_truth: float
     seed: int
     """The run's seed, whose `run_streams(seed, ground_truth).evaluation` seeds the evaluations."""
-    checkpoints: int
     eval_episodes: int
     slices: int
     history: int
@@ -195,46 +195,44 @@ class Episode(NamedTuple):
     layout: Layout
 
 
-def evaluation_episodes(task: Task, spec: EvaluationSpec) -> list[list[Episode]]:
-    """Per checkpoint, its evaluation episodes, drawn from the checkpoint's own seed. Every method, noise
-    level and N of one environment meets the same episodes, so they are built once (cached) and the
-    methods' runs differ only in what SI makes of them: comparisons between methods are paired."""
+def evaluation_episodes(task: Task, spec: EvaluationSpec, checkpoints: int) -> list[list[Episode]]:
+    """Per checkpoint, its evaluation episodes, drawn from the checkpoint's own seed (child k of the run's
+    evaluation stream). Every method, noise level and N of one environment meets the same episodes, so
+    they are built once (cached, and shared with studies of fewer checkpoints) and the methods' runs
+    differ only in what SI makes of them: comparisons between methods are paired."""
 
-    def build() -> list[list[Episode]]:
-        checkpoints = []
-        for seq in run_streams(spec.seed, spec.ground_truth).evaluation.spawn(spec.checkpoints):
+    def build(count: int) -> list[list[Episode]]:
+        built = []
+        for seq in run_streams(spec.seed, spec.ground_truth).evaluation.spawn(count):
             rng = np.random.default_rng(seq)
             episodes = []
             for _ in range(spec.eval_episodes):
                 taus = [probe_slice(task, spec.ground_truth, spec.history, rng) for _ in range(spec.slices)]
                 episodes.append(Episode(np.stack(taus), task.sample_layout(rng)))
-            checkpoints.append(episodes)
-        return checkpoints
+            built.append(episodes)
+        return built
 
-    def complete(checkpoints: list[list[Episode]]) -> bool:
-        return len(checkpoints) == spec.checkpoints and all(
-            len(episodes) == spec.eval_episodes and all(len(e.slices) == spec.slices for e in episodes)
-            for episodes in checkpoints
-        )
+    def complete(episodes: list[Episode]) -> bool:
+        return len(episodes) == spec.eval_episodes and all(len(e.slices) == spec.slices for e in episodes)
 
-    return cached_artefact(f"si_evaluation_{spec.domain}", spec, build, expect=Expect(list, complete))
+    return cached_prefix(f"si_evaluation_{spec.domain}", spec, checkpoints, build, check=complete)
 
 
 @dataclass(frozen=True)
 class LearningSpec:
     """What the clips of a run's learning episodes depend on when its candidates are drawn uniformly: not
-    the method, the noise level or how SI is fine-tuned."""
+    the method, the noise level, how SI is fine-tuned or how many episodes the run has (episode k's clip is
+    the same in a short run and a long one)."""
 
     domain: str
     ground_truth: float
     seed: int
     """The run's seed; with the ground truth it seeds the learner's queries and the layouts."""
-    episodes: int
     n_candidates: int
     history: int
 
 
-def learning_clips(task: Task, spec: LearningSpec, model: SIModel) -> list[Clip]:
+def learning_clips(task: Task, spec: LearningSpec, episodes: int, model: SIModel) -> list[Clip]:
     """Per learning episode, the clip its query observes, executed once per environment (cached).
 
     With candidates drawn uniformly from Phi (Algorithm 2), what a learner asks never depends on what SI has
@@ -242,25 +240,24 @@ def learning_clips(task: Task, spec: LearningSpec, model: SIModel) -> list[Clip]
     streams. So every method, noise level and fine-tuning of one environment executes the same clips, and
     they are executed once, by a learner that only asks; runs replay them (`Clip.replay`) with their own
     learners, whose queries are checked against them. The rows are those of executing every run's clips.
+    A study with fewer episodes replays the first clips of a longer one.
     """
 
-    def build() -> list[Clip]:
+    def build(count: int) -> list[Clip]:
         truth, h = spec.ground_truth, spec.history
         _, learner_seq, learn_seq, _ = run_streams(spec.seed, truth)
         config = PESIConfig(n_candidates=spec.n_candidates, history=spec.history)
         asker = PESILearner(model, config, integer_seed(learner_seq))
         learn_rng = np.random.default_rng(learn_seq)
         clips: list[Clip] = []
-
-        for _ in range(spec.episodes):
+        for _ in range(count):
             layout = task.sample_layout(learn_rng)
             asker.ask(lambda phi, rng, layout=layout: _record(clips, clip(task, truth, phi, layout, h, rng)))
         return clips
 
-    def complete(clips: list[Clip]) -> bool:
-        return len(clips) == spec.episodes and all(isinstance(c, Clip) for c in clips)
-
-    return cached_artefact(f"si_learning_{spec.domain}", spec, build, expect=Expect(list, complete))
+    return cached_prefix(
+        f"si_learning_{spec.domain}", spec, episodes, build, check=lambda item: isinstance(item, Clip)
+    )
 
 
 def _record(clips: list[Clip], clip: Clip) -> np.ndarray:
@@ -308,14 +305,12 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         learn_rng = np.random.default_rng(learn_seq)
         h = cell.data.history
         n_checkpoints = cell.episodes // cell.eval_every + 1
-        spec = EvaluationSpec(
-            cell.domain, truth, cell.seed, n_checkpoints, cell.eval_episodes, cell.eval_slices, h
-        )
-        checkpoints = evaluation_episodes(task, spec)
+        spec = EvaluationSpec(cell.domain, truth, cell.seed, cell.eval_episodes, cell.eval_slices, h)
+        checkpoints = evaluation_episodes(task, spec, n_checkpoints)
         clips = None
         if learner is not None and cell.fine_tuning.candidate_sampling == "uniform":
-            learning = LearningSpec(cell.domain, truth, cell.seed, cell.episodes, cell.n_candidates, h)
-            clips = learning_clips(task, learning, model)
+            learning = LearningSpec(cell.domain, truth, cell.seed, cell.n_candidates, h)
+            clips = learning_clips(task, learning, cell.episodes, model)
         rows: list[tuple[int, str, float]] = []
         for episode in range(cell.episodes + 1):
             if episode % cell.eval_every == 0:
