@@ -35,9 +35,9 @@ from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.push import PushPlan, execute_push
 from hipref.control.tool import ARM_POSITIONS, ControllerConfig, ToolController
-from hipref.envs.task import Layout, Rollout
+from hipref.envs.task import Layout, Rollout, evenly_spaced
 from hipref.sim.config import SceneConfig
-from hipref.sim.render import clip_frames
+from hipref.sim.render import clip_frames, watching_camera
 from hipref.sim.scene import Scene, make_scene
 from hipref.validation import check_int, check_interval, check_parameter, check_range
 
@@ -199,15 +199,20 @@ class PushingTask:
         return Rollout(push.features, bool(push.success))
 
     def clip_frames(
-        self, true_parameter: float, estimate: float, layout: Layout, every: int = 4
+        self, true_parameter: float, estimate: float, layout: Layout, frames: int = 40
     ) -> list[np.ndarray] | None:
-        """The push of `rollout` as images, one every `every` control periods, the cube at its recorded
-        place; None where no GL is."""
-        check_int("every", every, 1)
+        """The push of `rollout` as `frames` images evenly spaced over it, the cube at its recorded place;
+        None where no GL is. Seen from above the far side of the desk, aimed between the cube's start and
+        its goal."""
+        check_int("frames", frames, 1)
         start, goal = layout
         self.reset(true_parameter, start, goal)
         push = self.push(estimate)
-        return clip_frames(self.scene, push.features[::every, ARM_POSITIONS], push.cube_xy[::every])
+        middle = (np.asarray(start) + np.asarray(goal)) / 2.0
+        camera = watching_camera((middle[0], middle[1], self.scene.desk_height), 1.0, -90.0, -35.0)
+        shown = evenly_spaced(len(push.features), frames)
+        positions, cube_xy = push.features[shown, ARM_POSITIONS], push.cube_xy[shown]
+        return clip_frames(self.scene, positions, cube_xy, camera=camera)
 
     # --- layout ---------------------------------------------------------------------------------------
 

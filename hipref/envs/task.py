@@ -52,10 +52,10 @@ class Task(Protocol):
         ...
 
     def clip_frames(
-        self, true_parameter: float, estimate: float, layout: Layout, every: int = 4
+        self, true_parameter: float, estimate: float, layout: Layout, frames: int = 40
     ) -> list[np.ndarray] | None:
-        """The clip of `rollout` as images, one every `every` control periods (`hipref.sim.render`); None
-        where no GL is."""
+        """The clip of `rollout` as `frames` images evenly spaced over it (`hipref.sim.render`), seen from
+        where the effect of a wrong estimate shows; None where no GL is."""
         ...
 
 
@@ -80,6 +80,12 @@ class Clip(NamedTuple):
                 f"with {self.estimate} at {self.first}: the queries depend on what the learner has learnt"
             )
         return self.tau
+
+
+def evenly_spaced(periods: int, frames: int) -> np.ndarray:
+    """Indices of `frames` control periods evenly spaced over a clip of `periods` (repeated when the clip
+    is shorter): a clip is shown as a fixed number of frames, however long it ran."""
+    return np.linspace(0, periods - 1, frames).round().astype(int)
 
 
 def slice_start(periods: int, history: int, rng: np.random.Generator) -> int:

@@ -17,9 +17,9 @@ import numpy as np
 from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.tool import ARM_POSITIONS, FORCE_Z, ControllerConfig, ToolController
-from hipref.envs.task import Layout, Rollout
+from hipref.envs.task import Layout, Rollout, evenly_spaced
 from hipref.sim.config import SceneConfig
-from hipref.sim.render import clip_frames
+from hipref.sim.render import clip_frames, watching_camera
 from hipref.sim.scene import Scene, make_scene
 from hipref.validation import check_int, check_interval, check_parameter, check_range
 
@@ -164,12 +164,18 @@ class WipingTask:
         return Rollout(stroke.features, bool(stroke.success))
 
     def clip_frames(
-        self, true_parameter: float, estimate: float, layout: Layout, every: int = 4
+        self, true_parameter: float, estimate: float, layout: Layout, frames: int = 40
     ) -> list[np.ndarray] | None:
-        """The stroke of `rollout` as images, one every `every` control periods; None where no GL is."""
-        check_int("every", every, 1)
+        """The stroke of `rollout` as `frames` images evenly spaced over it; None where no GL is.
+
+        Seen from the far side of the desk, level with its surface and close to the stroke, where a
+        sponge hovering above the desk or pressing into it shows."""
+        check_int("frames", frames, 1)
         features = self.rollout(true_parameter, estimate, layout).features
-        return clip_frames(self.scene, features[::every, ARM_POSITIONS])
+        middle = (np.asarray(layout[0]) + np.asarray(layout[1])) / 2.0
+        camera = watching_camera((middle[0], middle[1], true_parameter), 0.8, -90.0, -5.0)
+        shown = evenly_spaced(len(features), frames)
+        return clip_frames(self.scene, features[shown, ARM_POSITIONS], camera=camera)
 
     def observation(self) -> np.ndarray:
         """The features of the current state, laid out as each period's in `Stroke.features`."""

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator, Sequence
+
 import mujoco
 import numpy as np
 
 from hipref.sim.scene import Scene
+
+CLIP_SIZE: tuple[int, int] = (240, 320)
+"""(height, width) in pixels of a clip's frames: small enough to render and encode while a person watches."""
 
 
 def still_frame(model: mujoco.MjModel, data: mujoco.MjData, camera: str = "overview") -> np.ndarray | None:
@@ -19,25 +25,51 @@ def still_frame(model: mujoco.MjModel, data: mujoco.MjData, camera: str = "overv
         return None
 
 
+def watching_camera(
+    lookat: Sequence[float], distance: float, azimuth: float, elevation: float
+) -> mujoco.MjvCamera:
+    """A free camera aimed at `lookat` (m) from `distance` (m), `azimuth` and `elevation` (degrees)."""
+    camera = mujoco.MjvCamera()
+    camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+    camera.lookat[:] = lookat
+    camera.distance, camera.azimuth, camera.elevation = distance, azimuth, elevation
+    return camera
+
+
+@contextlib.contextmanager
+def _clip_renderer(model: mujoco.MjModel, height: int, width: int) -> Iterator[mujoco.Renderer]:
+    """A renderer without shadows, reflections or multisampling: on a CPU rasteriser (EGL on Mesa's
+    llvmpipe) these take over nine tenths of a frame's time and show nothing a clip needs."""
+    samples = model.vis.quality.offsamples
+    model.vis.quality.offsamples = 0  # read when the renderer's framebuffer is made
+    try:
+        with mujoco.Renderer(model, height=height, width=width) as renderer:
+            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+                renderer.scene.flags[flag] = False
+            yield renderer
+    finally:
+        model.vis.quality.offsamples = samples
+
+
 def clip_frames(
     scene: Scene,
     arm_positions: np.ndarray,
     cube_xy: np.ndarray | None = None,
     *,
-    camera: str = "overview",
-    height: int = 240,
-    width: int = 320,
+    camera: str | mujoco.MjvCamera = "overview",
+    height: int = CLIP_SIZE[0],
+    width: int = CLIP_SIZE[1],
 ) -> list[np.ndarray] | None:
     """The frames of a recorded clip, one per row of `arm_positions` (the arm's joint positions), with the
     cube (if any) moved to the row's `cube_xy` on the desk; or None, with the reason printed, without GL.
 
     Each frame poses a copy of the scene's current state by kinematics alone (bodies, camera, lights), so
     the clip is shown as it was recorded, not simulated again; the cube keeps its current height and
-    orientation."""
+    orientation. `camera` is a camera of the scene by name or a free camera (`watching_camera`)."""
     data = mujoco.MjData(scene.model)
     data.qpos[:] = scene.data.qpos
     try:
-        with mujoco.Renderer(scene.model, height=height, width=width) as renderer:
+        with _clip_renderer(scene.model, height, width) as renderer:
             frames = []
             for k, q in enumerate(arm_positions):
                 data.qpos[scene.arm_qpos] = q
