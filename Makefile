@@ -70,3 +70,4 @@ bench: install
 	$(PY) -m hipref.bench.physics
 	$(PY) -m hipref.bench.sweep
 	$(PY) -m hipref.bench.clips
+	$(PY) -m hipref.bench.teach

@@ -3,6 +3,7 @@
 - `python -m hipref.bench.physics`: physics steps per second with each task's controller in the loop,
   against bare `mj_step` on the same model.
 - `python -m hipref.bench.sweep`: one CPU-bound sweep with 1 and 2 local workers, and its speed-up.
+- `python -m hipref.bench.teach`: the seconds a person waits for the next preference query after answering.
 - `python -m hipref.bench.clips`: a noise sweep of SI runs with each environment's learning clips replayed
   against executed by every run.
 

@@ -1,0 +1,84 @@
+"""The parameters of a teaching session (notebook 09)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hipref.experiments.domains import domain_spec
+from hipref.experiments.si_pretraining import PretrainData
+from hipref.validation import check_choice, check_int, check_range
+
+TEACHERS: tuple[str, ...] = ("person", "scripted")
+"""Who answers: a person at the widgets, or a scripted stand-in that presses the same buttons."""
+
+
+@dataclass(frozen=True)
+class TeachConfig:
+    """A session: preferences for PESI (Algorithm 2) in one environment, then one feedback episode of
+    tabular COACH on the wiping grid (Eq. 1)."""
+
+    teacher: str = "scripted"
+    """'person' (answer with the mouse or the keys) or 'scripted' (a stand-in presses the buttons: how
+    papermill and nbval run the notebook)."""
+    domain: str = "wiping"
+    """The preferences' world: 'wiping' (desk height) or 'pushing' (cube mass)."""
+    true_parameter: float = 0.7
+    """The environment's unknown parameter (m or kg), inside the domain's range; hidden from the person
+    unless `reveal_truth`."""
+    seed: int = 0
+    """Seed of the queries, the layouts, the sides the candidates are shown on and the stand-in."""
+    preference_queries: int = 12
+    """Preference queries planned (PESI's learning episodes)."""
+    feedback_steps: int = 12
+    """Length in high-level steps of the feedback episode (A.7 allows 290; a person's episode is short)."""
+    desk_height: float = 0.7
+    """Desk height in m of the feedback episode, known to its controller (R1 is about the high level)."""
+    frames: int = 40
+    """Frames of a clip at `fps`: it lasts frames / fps seconds, sped up if the motion is longer."""
+    fps: int = 20
+    """Frames per second of the clips."""
+    reveal_truth: bool = False
+    """Show the true parameter and the estimate's error after each answer."""
+    scripted_noise: float = 0.2
+    """The stand-in's flip rate: the fraction of its preferences it answers wrongly (as the scripted
+    teacher of section 5)."""
+    session: str = ""
+    """File name of the session under the results directory's `sessions/`; '' names it after the teacher,
+    the domain and the seed. A person's session resumes from it; the stand-in's is written afresh."""
+    n_trajectories: int = 100
+    """Algorithm 4 trajectories SI is pretrained on (A.7: 100; the SI studies' model is reused)."""
+    pretrain_steps: int = 3000
+    """Adam steps of Algorithm 4."""
+
+    def __post_init__(self) -> None:
+        check_choice("teacher", self.teacher, TEACHERS)
+        candidates = domain_spec(self.domain).candidates
+        check_range("true_parameter", self.true_parameter, candidates.low, candidates.high)
+        check_int("seed", self.seed, 0)
+        check_int("preference_queries", self.preference_queries, 1)
+        check_int("feedback_steps", self.feedback_steps, 1)
+        heights = domain_spec("wiping").candidates
+        check_range("desk_height", self.desk_height, heights.low, heights.high)
+        check_int("frames", self.frames, 2, 200)
+        check_int("fps", self.fps, 1, 60)
+        check_range("scripted_noise", self.scripted_noise, 0.0, 1.0)
+        if self.session and (Path(self.session).name != self.session or not self.session.endswith(".jsonl")):
+            raise ValueError(f"session must be a file name ending in .jsonl, got {self.session!r}")
+        self.data  # noqa: B018 - validates n_trajectories and pretrain_steps
+
+    @property
+    def data(self) -> PretrainData:
+        """Algorithm 4's data and pretraining: the SI studies' model."""
+        return PretrainData(self.n_trajectories, pretrain_steps=self.pretrain_steps)
+
+    @property
+    def session_name(self) -> str:
+        return self.session or f"{self.teacher}_{self.domain}_seed{self.seed}.jsonl"
+
+    def header(self) -> dict[str, Any]:
+        """What a session file records of its session: every field that changes the queries or answers."""
+        shown = {"teacher", "session", "reveal_truth", "fps"}
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in shown}

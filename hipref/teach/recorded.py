@@ -1,0 +1,136 @@
+"""A stored session as a teacher: a person's answers re-run through PESI, CO-PESI and the noise estimators.
+
+`RecordedPreferenceTeacher` answers each query with the label the session stored for it, as the scripted
+teachers answer theirs, after checking that the query is the one the person was shown. `replay` rebuilds a
+learner of the session's environment from the stored slices (no physics): PESI, as in the session, or
+CO-PESI with its noise level estimated (A.9), which a person's unknown flip rate calls for. `summary` reads
+what the answers say about the person: how often they agreed with the truth, how long they took, and the
+flip rate each estimator infers from the answers alone. "Can't tell" answers give no label and are left
+out of every count but their own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from hipref.envs.task import Clip
+from hipref.experiments.domains import domain_spec
+from hipref.experiments.si_pretraining import pretrained_model
+from hipref.learners.coteaching import CoPESIConfig, EstimatedNoiseCoPESILearner
+from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
+from hipref.learners.noise_rate import likelihood_noise, repeated_pair_noise
+from hipref.learners.pesi import PESIConfig, PESILearner
+from hipref.seeds import integer_seed
+from hipref.teach.config import TeachConfig
+from hipref.teach.preferences import evaluation_slices, session_streams
+from hipref.teach.session import SessionFile
+from hipref.teachers.preference import PreferenceQuery, pair_labels
+from hipref.validation import check_choice
+
+REPLAYED: tuple[str, ...] = ("pesi", "co_pesi_estimated")
+"""Learners a session can be replayed into."""
+
+
+class RecordedPreferenceTeacher:
+    """Answers the session's queries in order with the stored labels (None for "can't tell")."""
+
+    def __init__(self, records: Sequence[dict[str, Any]]) -> None:
+        self.records = list(records)
+        self.asked = 0
+
+    def answer(self, query: PreferenceQuery) -> int | None:
+        """The stored label of the next query; ValueError if `query` is not the one that was shown."""
+        if self.asked >= len(self.records):
+            raise ValueError(
+                f"the session holds {len(self.records)} answers; query {self.asked + 1} has none"
+            )
+        record = self.records[self.asked]
+        if list(query.candidates) != record["candidates"]:
+            raise ValueError(
+                f"query {self.asked} asks about {list(query.candidates)}, but the person was shown "
+                f"{record['candidates']}"
+            )
+        self.asked += 1
+        return record["label"]
+
+
+def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str = "pesi") -> PESILearner:
+    """A learner of `method` told the session's answers in order, on the stored slices (no physics)."""
+    check_choice("method", method, REPLAYED)
+    spec = domain_spec(config.domain)
+    model = pretrained_model(config.domain, config.data)
+    h = config.data.history
+    if method == "pesi":
+        learner = PESILearner(
+            model,
+            PESIConfig(batch_size=spec.batch_size, history=h),
+            integer_seed(session_streams(config).learner),
+        )
+    else:
+        coteaching = CoPESIConfig(
+            batch_size=spec.batch_size,
+            history=h,
+            start_size=spec.batch_size,
+            refresh_frequency=spec.refresh_frequency,
+        )
+        learner = EstimatedNoiseCoPESILearner(
+            model, coteaching, integer_seed(session_streams(config).learner)
+        )
+    teacher = RecordedPreferenceTeacher(records)
+    for record in records:
+        stored = record["clip"]
+        recorded = Clip(stored["estimate"], stored["periods"], stored["first"], np.array(stored["tau"]))
+        query = learner.ask(lambda phi, rng, recorded=recorded: recorded.replay(phi, h, rng))
+        label = teacher.answer(query)
+        if label is not None:
+            learner.tell(query, label)
+    return learner
+
+
+def labelled(records: Sequence[dict[str, Any]]) -> PreferenceSet:
+    """The answers that carry a label, as a preference dataset (Algorithm 5's input)."""
+    kept = [r for r in records if r["label"] is not None]
+    return PreferenceSet(
+        first=np.array([r["candidates"][0] for r in kept]),
+        second=np.array([r["candidates"][1] for r in kept]),
+        label=np.array([r["label"] for r in kept]),
+    )
+
+
+def summary(session: SessionFile, config: TeachConfig) -> dict[str, float]:
+    """What the session's preference answers say: counts, agreement with the truth, answer times, the
+    flip rate each estimator infers from the labels alone, and the error of the learners replayed."""
+    records = session.of_kind("preference")
+    if not records:
+        raise ValueError(f"{session.path} holds no preference answers yet")
+    data = labelled(records)
+    clean, tie = pair_labels(data.first, data.second, config.true_parameter)
+    judged = ~tie
+    spec = domain_spec(config.domain)
+    seconds = np.array([r["seconds"] for r in records])
+    result: dict[str, float] = {
+        "answers": float(len(records)),
+        "cant_tell": float(sum(r["label"] is None for r in records)),
+        "agreement_with_truth": float(np.mean(data.label[judged] == clean[judged]))
+        if judged.any()
+        else np.nan,
+        "median_seconds": float(np.median(seconds)),
+        "slowest_seconds": float(seconds.max()),
+    }
+    if len(data):
+        for conflict in CONFLICTS:
+            result[f"algorithm5_{conflict}"] = estimate_noise(data, conflict)
+        result["marginal_likelihood"] = likelihood_noise(data, spec.candidates.low, spec.candidates.high)
+        result["repeated_pair"] = repeated_pair_noise(data)
+    evaluation = evaluation_slices(config, spec.make_task())
+    osi = pretrained_model(config.domain, config.data)
+    result["osi_error"] = abs(float(osi.predict(evaluation).mean()) - config.true_parameter)
+    for method in REPLAYED:
+        learner = replay(config, records, method)
+        result[f"{method}_error"] = abs(
+            float(learner.model.predict(evaluation).mean()) - config.true_parameter
+        )
+    return result

@@ -1,0 +1,175 @@
+"""Notebook 09 in JupyterLab in a real headless browser: a person's clicks and keys reach the session file,
+and a reopened notebook resumes where the person stopped.
+
+Needs Debian's `chromium` (`.ci/run` installs it) and Playwright's Python client (environment.txt); where
+either is missing the test is skipped with the reason, never passed. The screenshot of the notebook it takes
+is the README's (`results_dir()/figures/09_teach_browser.png`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+PERSON = {
+    "teacher": "person",
+    "preference_queries": 3,
+    "feedback_steps": 2,
+    "n_trajectories": 8,
+    "pretrain_steps": 20,
+    "session": "browser.jsonl",
+}
+"""A person's short session on a small SI model (the parameters cell is rewritten with these)."""
+
+try:
+    from playwright.sync_api import Page, sync_playwright
+except ImportError:  # pragma: no cover - environment.txt installs it
+    sync_playwright = None
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def person_notebook(directory: Path) -> Path:
+    """Notebook 09 with the parameters cell set for `PERSON` and papermill's injected cell removed."""
+    notebook = json.loads((ROOT / "notebooks" / "09_teach.ipynb").read_text())
+    cells = []
+    for cell in notebook["cells"]:
+        tags = cell.get("metadata", {}).get("tags", [])
+        if "injected-parameters" in tags:
+            continue
+        if "parameters" in tags:
+            lines = []
+            for line in "".join(cell["source"]).splitlines():
+                name = line.split(":")[0]
+                if name in PERSON:
+                    kind = line.split(":")[1].split("=")[0].strip()
+                    line = f"{name}: {kind} = {json.dumps(PERSON[name])}"
+                lines.append(line)
+            cell["source"] = "\n".join(lines)
+        cell["outputs"] = [] if cell["cell_type"] == "code" else cell.get("outputs")
+        if cell["cell_type"] != "code":
+            cell.pop("outputs", None)
+        cells.append(cell)
+    notebook["cells"] = cells
+    notebook["metadata"].pop("widgets", None)
+    path = directory / "09_teach.ipynb"
+    path.write_text(json.dumps(notebook))
+    return path
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
+    """A JupyterLab server on loopback over a folder with the person's notebook; (url, results dir)."""
+    if CHROMIUM is None or sync_playwright is None:
+        pytest.skip("no browser: Debian's chromium or Playwright's Python client is not installed")
+    person_notebook(tmp_path)
+    port, token = free_port(), "hipref-test"
+    results = tmp_path / "results"
+    env = {**os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
+    command = [
+        sys.executable, "-m", "jupyterlab", "--no-browser", f"--port={port}", "--ip=127.0.0.1",
+        f"--ServerApp.token={token}", f"--ServerApp.root_dir={tmp_path}", "--allow-root",
+        "--LabApp.news_url=", "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
+    ]  # fmt: skip
+    server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            time.sleep(0.3)
+        else:
+            pytest.fail("JupyterLab did not start within 60 s")
+        yield f"http://127.0.0.1:{port}/lab/tree/09_teach.ipynb?token={token}", results
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            server.kill()
+
+
+def run_all(page: Page) -> None:
+    """Run > Run All Cells once the notebook's kernel is idle."""
+    page.get_by_text("Python (hipref) | Idle").wait_for(timeout=120_000)
+    page.get_by_role("menuitem", name="Run", exact=True).click()
+    page.get_by_role("menuitem", name="Run All Cells", exact=True).click()
+
+
+def answers(results: Path) -> list[dict]:
+    path = results / "sessions" / PERSON["session"]
+    return [json.loads(line) for line in path.read_text().splitlines()[1:]] if path.exists() else []
+
+
+def wait_answers(results: Path, count: int, timeout: float = 60) -> list[dict]:
+    deadline = time.monotonic() + timeout
+    while len(found := answers(results)) < count and time.monotonic() < deadline:
+        time.sleep(0.2)
+    return found
+
+
+def test_a_person_teaches_closes_the_browser_and_resumes(lab):
+    url, results = lab
+    flags = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync"]  # fmt: skip
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=flags)
+        page = browser.new_page(viewport={"width": 1100, "height": 1400})
+        page.goto(url)
+        run_all(page)
+        preferences = page.locator(".hipref-preferences")
+        preferences.get_by_text("Query 1 of 3").wait_for(timeout=240_000)
+        preferences.get_by_role("button", name="◀ left").click()
+        preferences.get_by_text("Query 2 of 3").wait_for(timeout=60_000)
+        preferences.hover()
+        page.keyboard.press("ArrowRight")  # the hotkey, with the mouse over the clips
+        preferences.get_by_text("Query 3 of 3").wait_for(timeout=60_000)
+        assert [a["answer"] for a in wait_answers(results, 2)] == ["left", "right"]
+        feedback = page.locator(".hipref-feedback")
+        feedback.get_by_role("button", name="+1 good").click()
+        feedback.get_by_text("Step 2 of 2").wait_for(timeout=60_000)
+        page.locator(".hipref-preferences img").first.scroll_into_view_if_needed()
+        shot = results / "figures" / "09_teach_browser.png"
+        shot.parent.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(shot), full_page=False)
+        browser.close()  # the person closes the browser mid-session
+
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=flags)
+        page = browser.new_page(viewport={"width": 1100, "height": 1400})
+        page.goto(url)
+        run_all(page)  # the notebook reopened and run again resumes from the session file
+        preferences = page.locator(".hipref-preferences")
+        preferences.get_by_text("Query 3 of 3").wait_for(timeout=240_000)
+        preferences.get_by_role("button", name="can't tell ▼").click()
+        preferences.get_by_text("All 3 preference queries answered").wait_for(timeout=60_000)
+        feedback = page.locator(".hipref-feedback")
+        feedback.get_by_text("Step 2 of 2").wait_for(timeout=60_000)
+        feedback.hover()
+        page.keyboard.press("-")
+        feedback.get_by_text("Feedback episode over").wait_for(timeout=60_000)
+        browser.close()
+    stored = wait_answers(results, 5)
+    assert [(a["kind"], a.get("answer", a.get("feedback"))) for a in stored] == [
+        ("preference", "left"),
+        ("preference", "right"),
+        ("feedback", 1),
+        ("preference", "cant_tell"),
+        ("feedback", -1),
+    ]
+    assert shot.stat().st_size > 10_000

@@ -1,0 +1,234 @@
+"""A person's teaching session: answers stored before use, resumed after a crash, replayed exactly."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from hipref.teach import open_session
+from hipref.teach.app import (
+    FeedbackApp,
+    PreferenceApp,
+    answer_feedback_as_scripted,
+    answer_preferences_as_scripted,
+)
+from hipref.teach.config import TeachConfig
+from hipref.teach.feedback import FeedbackTeaching
+from hipref.teach.preferences import PreferenceTeaching
+from hipref.teach.recorded import RecordedPreferenceTeacher, replay, summary
+from hipref.teach.session import SessionFile
+
+SMALL = dict(n_trajectories=8, pretrain_steps=20, preference_queries=6, feedback_steps=4, teacher="person")
+"""A session on a small SI model, so the tests do not wait for Algorithm 4 at the study's scale."""
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One cache for the module: the small SI model is pretrained once."""
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.fixture
+def results(tmp_path: Path, cache: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("HIPREF_RESULTS_DIR", str(tmp_path / "results"))
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(cache))
+    return tmp_path / "results"
+
+
+def states_equal(a: torch.nn.Module, b: torch.nn.Module) -> bool:
+    sa, sb = a.state_dict(), b.state_dict()
+    return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
+
+
+def lines(path: Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines()]
+
+
+def test_an_answer_is_on_disk_before_the_learner_is_told(results, monkeypatch):
+    config = TeachConfig(**SMALL)
+    session = open_session(config)
+    teaching = PreferenceTeaching(config, session, render=False)
+    told = []
+    original = teaching.learner.tell
+
+    def tell(query, label):
+        told.append(len(lines(session.path)) - 1)  # answers on disk when PESI hears this one
+        original(query, label)
+
+    monkeypatch.setattr(teaching.learner, "tell", tell)
+    for answer in ("left", "right", "left"):
+        teaching.answer(answer, 1.0)
+    teaching.close()
+    assert told == [1, 2, 3]
+
+
+def test_cant_tell_is_stored_without_a_label_and_not_told(results):
+    config = TeachConfig(**SMALL)
+    teaching = PreferenceTeaching(config, open_session(config), render=False)
+    teaching.answer("cant_tell", 2.5)
+    teaching.answer("left", 1.0)
+    teaching.close()
+    records = teaching.session.of_kind("preference")
+    assert [r["answer"] for r in records] == ["cant_tell", "left"]
+    assert records[0]["label"] is None and records[1]["label"] in (-1, 1)
+    assert len(teaching.learner) == 1  # only the labelled answer is in PESI's buffer D
+
+
+def test_a_bad_answer_is_refused_and_nothing_is_stored(results):
+    config = TeachConfig(**SMALL)
+    teaching = PreferenceTeaching(config, open_session(config), render=False)
+    with pytest.raises(ValueError, match="answer must be one of"):
+        teaching.answer("up", 1.0)
+    feedback = FeedbackTeaching(config, teaching.session)
+    with pytest.raises(ValueError, match="feedback must be one of"):
+        feedback.answer(2, 1.0)
+    teaching.close()
+    assert lines(teaching.session.path)[1:] == []
+
+
+def test_the_labels_follow_the_sides_the_candidates_were_shown_on(results):
+    config = TeachConfig(**SMALL)
+    teaching = PreferenceTeaching(config, open_session(config), render=False)
+    sides = set()
+    while (shown := teaching.current) is not None:
+        sides.add(shown.order)
+        # Pressing the side of candidate 0 is y = 1 (Eq. 2), whichever side it was shown on.
+        assert shown.label(shown.side_of(0)) == 1 and shown.label(shown.side_of(1)) == -1
+        teaching.answer(shown.side_of(1), 0.5)
+    teaching.close()
+    assert sides == {(0, 1), (1, 0)}  # both placements occur: the sides are drawn, not fixed
+
+
+def test_replaying_a_session_rebuilds_the_live_learner_exactly(results):
+    config = TeachConfig(**SMALL)
+    session = open_session(config)
+    preferences = PreferenceApp(PreferenceTeaching(config, session, render=False))
+    answer_preferences_as_scripted(preferences, noise=0.3, seed=1)
+    preferences.teaching.close()
+    records = session.of_kind("preference")
+    assert len(records) == config.preference_queries
+    replayed = replay(config, records, "pesi")
+    assert states_equal(replayed.model, preferences.teaching.learner.model)
+    # A recorded teacher refuses a query the person was not shown.
+    teacher = RecordedPreferenceTeacher(records)
+    with pytest.raises(ValueError, match="was shown"):
+        teacher.answer(_other_query(records[0]))
+    facts = summary(session, config)
+    assert facts["answers"] == config.preference_queries
+    assert 0.0 <= facts["agreement_with_truth"] <= 1.0
+    assert {"pesi_error", "co_pesi_estimated_error", "osi_error", "marginal_likelihood"} <= facts.keys()
+
+
+def _other_query(record: dict):
+    from hipref.teachers.preference import PreferenceQuery
+
+    a, b = record["candidates"]
+    return PreferenceQuery((b, a), np.array(record["clip"]["tau"]))
+
+
+CRASHING_SESSION = textwrap.dedent(
+    """
+    import os, signal, sys
+    from hipref.teach import open_session
+    from hipref.teach.config import TeachConfig
+    from hipref.teach.feedback import FeedbackTeaching
+    from hipref.teach.preferences import PreferenceTeaching
+    config = TeachConfig(**{small})
+    session = open_session(config)
+    preferences = PreferenceTeaching(config, session, render=False)
+    for answer in ("left", "cant_tell", "right"):
+        preferences.answer(answer, 1.0)
+    feedback = FeedbackTeaching(config, session)
+    feedback.answer(1, 1.0)
+    feedback.answer(-1, 1.0)
+    os.kill(os.getpid(), signal.SIGKILL)  # the kernel dies with the next query being prepared
+    """
+)
+
+
+def test_a_killed_session_resumes_where_it_stopped(results, tmp_path):
+    script = CRASHING_SESSION.format(small=SMALL)
+    command = [sys.executable, "-c", script]
+    died = subprocess.run(command, env=os.environ.copy(), capture_output=True, timeout=600)
+    assert died.returncode == -signal.SIGKILL, died.stderr.decode()[-2000:]
+    config = TeachConfig(**SMALL)
+    session = open_session(config)  # a person's session resumes
+    assert [r["answer"] for r in session.of_kind("preference")] == ["left", "cant_tell", "right"]
+    resumed = PreferenceTeaching(config, session, render=False)
+    resumed_feedback = FeedbackTeaching(config, session)
+    # The same session answered straight through, without the crash.
+    straight = SessionFile(tmp_path / "straight.jsonl", config.header())
+    live = PreferenceTeaching(config, straight, render=False)
+    for answer in ("left", "cant_tell", "right"):
+        live.answer(answer, 1.0)
+    live_feedback = FeedbackTeaching(config, straight)
+    live_feedback.answer(1, 1.0)
+    live_feedback.answer(-1, 1.0)
+    assert states_equal(resumed.learner.model, live.learner.model)
+    assert resumed.current.query.candidates == live.current.query.candidates  # the next query is the same
+    np.testing.assert_array_equal(resumed.current.query.features, live.current.query.features)
+    assert resumed_feedback.state == live_feedback.state
+    assert resumed_feedback.proposed == live_feedback.proposed
+    np.testing.assert_array_equal(resumed_feedback.coach.theta, live_feedback.coach.theta)
+    for teaching in (resumed, live):
+        teaching.close()
+
+
+def test_a_torn_last_line_is_dropped_with_a_warning(tmp_path):
+    path = tmp_path / "s.jsonl"
+    session = SessionFile(path, {"seed": 0})
+    session.append({"kind": "feedback", "step": 0})
+    with path.open("ab") as file:
+        file.write(b'{"kind": "feedback", "st')  # the kernel died while writing
+    with pytest.warns(UserWarning, match="cut off"):
+        again = SessionFile(path, {"seed": 0})
+    assert again.records == [{"kind": "feedback", "step": 0}]
+    again.append({"kind": "feedback", "step": 1})
+    assert [r.get("step") for r in lines(path)[1:]] == [0, 1]
+
+
+def test_another_sessions_file_is_refused(tmp_path):
+    path = tmp_path / "s.jsonl"
+    SessionFile(path, {"seed": 0, "domain": "wiping"})
+    with pytest.raises(ValueError, match="fields seed differ"):
+        SessionFile(path, {"seed": 1, "domain": "wiping"})
+    assert SessionFile(path, {"seed": 1, "domain": "wiping"}, fresh=True).records == []
+
+
+def test_the_widgets_answer_by_button_and_by_key(results):
+    config = TeachConfig(**SMALL)
+    session = open_session(config)
+    preferences = PreferenceApp(PreferenceTeaching(config, session, render=False), reveal_truth=True)
+    preferences.buttons["left"].click()
+    preferences._on_key({"type": "keydown", "key": "ArrowRight"})
+    preferences._on_key({"type": "keydown", "key": "s"})
+    preferences._on_key({"type": "keydown", "key": "q"})  # not an answer key: ignored
+    assert [r["answer"] for r in session.of_kind("preference")] == ["left", "right", "cant_tell"]
+    assert preferences.progress.value == 3 and "error" in preferences.status.value
+    feedback = FeedbackApp(FeedbackTeaching(config, session))
+    feedback.buttons[1].click()
+    feedback._on_key({"type": "keydown", "key": "-"})
+    feedback._on_key({"type": "keydown", "key": "0"})
+    assert [r["feedback"] for r in session.of_kind("feedback")] == [1, -1, 0]
+    answer_feedback_as_scripted(feedback)
+    assert feedback.teaching.done and all(b.disabled for b in feedback.buttons.values())
+    assert "<svg" in feedback.grid.value
+    preferences.teaching.close()
+
+
+def test_config_refuses_bad_values():
+    with pytest.raises(ValueError, match="teacher"):
+        TeachConfig(teacher="robot")
+    with pytest.raises(ValueError, match="true_parameter"):
+        TeachConfig(true_parameter=1.5)
+    with pytest.raises(ValueError, match="session must be a file name"):
+        TeachConfig(session="../elsewhere.jsonl")
