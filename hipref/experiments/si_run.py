@@ -19,8 +19,9 @@ the range: OSI is evaluated on the inputs it was trained for.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -35,18 +36,22 @@ from hipref.learners.coteaching import (
     reset_every_step_schedule,
 )
 from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS, PESIConfig, PESILearner
+from hipref.learners.robust import (
+    LabelSmoothingPESILearner,
+    LikelihoodNoiseCoPESILearner,
+    RobustPESIConfig,
+    SmallLossPESILearner,
+    TrustFlipPESILearner,
+    UnbiasedPESILearner,
+)
 from hipref.learners.sysid import SIModel
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import integer_seed
 from hipref.sweep import cached_prefix
+from hipref.teachers.models import TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_int, check_range
-
-METHODS: tuple[str, ...] = ("osi", "pesi", "pesi_ce", "co_pesi", "co_pesi_estimated")
-"""osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy (A.8); co_pesi:
-Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level estimated by
-Algorithm 5 from the preferences so far (A.9)."""
 
 COTEACHING_SCHEDULES: tuple[str, ...] = ("learned", "reset_every_step")
 """How CO-PESI's classifiers are refreshed (`hipref.learners.coteaching.CoPESIConfig`): 'learned', the
@@ -112,6 +117,9 @@ class SIRun:
     """How preferences update SI."""
     data: PretrainData = PretrainData()
     """Algorithm 4's data and pretraining, shared by every run with the same value."""
+    teacher: TeacherModel = TeacherModel()  # noqa: RUF009 - frozen, so a shared default is safe
+    """The scripted teacher's model (`hipref.teachers.models`); the paper's uniform flip of rate `noise`
+    by default. Its rows carry a `teacher` column unless it is the default."""
 
     def __post_init__(self) -> None:
         spec = domain_spec(self.domain)
@@ -120,14 +128,79 @@ class SIRun:
         check_range("noise", self.noise, 0.0, 1.0)
         check_int("seed", self.seed, 0)
         check_int("n_candidates", self.n_candidates, 2, spec.candidates.size)
-        if self.method.startswith("co_pesi") and self.n_candidates != 2:
+        if self.method in PAIR_METHODS and self.n_candidates != 2:
             raise ValueError(
-                f"n_candidates must be 2 for co_pesi (pair classifiers), got {self.n_candidates}"
+                f"n_candidates must be 2 for {self.method} (pairs only), got {self.n_candidates}"
             )
+        if not isinstance(self.teacher, TeacherModel):
+            raise ValueError(f"teacher must be a TeacherModel, got {self.teacher!r}")
+        if self.teacher.kind == "oracle" and self.noise != 0:
+            raise ValueError(f"noise must be 0 with the 'oracle' teacher, got {self.noise!r}")
+        if self.teacher.kind == "distance" and self.n_candidates != 2:
+            raise ValueError(f"n_candidates must be 2 for the 'distance' teacher, got {self.n_candidates}")
         check_int("episodes", self.episodes, 1)
         check_int("eval_every", self.eval_every, 1, self.episodes)
         check_int("eval_episodes", self.eval_episodes, 1)
         check_int("eval_slices", self.eval_slices, 1)
+
+
+LearnerBuilder = Callable[["SIRun", SIModel, dict[str, Any], int], "PESILearner | None"]
+"""Builds a method's learner from the cell, the pretrained model, the PESI settings every method shares
+(`common`) and the learner's seed; None for a method that learns nothing."""
+
+
+def _coteaching_config(cell: SIRun, common: dict[str, Any]) -> CoPESIConfig:
+    spec = domain_spec(cell.domain)
+    learned = cell.fine_tuning.coteaching_schedule == "learned"
+    schedule = CoPESIConfig if learned else reset_every_step_schedule
+    return schedule(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
+
+
+def _robust_config(cell: SIRun, common: dict[str, Any]) -> RobustPESIConfig:
+    return RobustPESIConfig(start_size=domain_spec(cell.domain).batch_size, **common)
+
+
+LEARNERS: dict[str, LearnerBuilder] = {
+    "osi": lambda cell, model, common, seed: None,
+    "pesi": lambda cell, model, common, seed: PESILearner(model, PESIConfig(loss="soft", **common), seed),
+    "pesi_ce": lambda cell, model, common, seed: PESILearner(
+        model, PESIConfig(loss="standard", **common), seed
+    ),
+    "co_pesi": lambda cell, model, common, seed: CoPESILearner(
+        model, cell.noise, _coteaching_config(cell, common), seed
+    ),
+    # A.9: the forget number comes from Algorithm 5 on the preferences so far, not the true noise.
+    "co_pesi_estimated": lambda cell, model, common, seed: EstimatedNoiseCoPESILearner(
+        model, _coteaching_config(cell, common), seed
+    ),
+    "pesi_smoothed": lambda cell, model, common, seed: LabelSmoothingPESILearner(
+        model, _robust_config(cell, common), seed
+    ),
+    "pesi_unbiased": lambda cell, model, common, seed: UnbiasedPESILearner(
+        model, _robust_config(cell, common), seed
+    ),
+    "pesi_small_loss": lambda cell, model, common, seed: SmallLossPESILearner(
+        model, _robust_config(cell, common), seed
+    ),
+    "pesi_rime": lambda cell, model, common, seed: TrustFlipPESILearner(
+        model, _robust_config(cell, common), seed
+    ),
+    "co_pesi_likelihood": lambda cell, model, common, seed: LikelihoodNoiseCoPESILearner(
+        model, _coteaching_config(cell, common), seed
+    ),
+}
+"""Every method by name. osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy
+(A.8); co_pesi: Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level
+estimated by Algorithm 5 from the preferences so far (A.9). Beyond the paper (`hipref.learners.robust`):
+pesi_smoothed: label smoothing of Eq. 2 (conservative); pesi_unbiased: the unbiased loss with the estimated
+flip rate; pesi_small_loss: SI's own small-loss filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood:
+Algorithm 1 with the maximum marginal likelihood flip rate."""
+
+METHODS: tuple[str, ...] = tuple(LEARNERS)
+"""The methods' names, in LEARNERS' order."""
+
+PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce"}
+"""Methods defined on pairs only (N = 2): classifiers of pairs, or losses mixing y and -y."""
 
 
 def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
@@ -144,17 +217,7 @@ def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
         pr_domain=tuning.pr_domain,
         fine_tuned=tuning.fine_tuned,
     )
-    if cell.method == "osi":
-        return None
-    if cell.method in ("pesi", "pesi_ce"):
-        loss = "soft" if cell.method == "pesi" else "standard"
-        return PESILearner(model, PESIConfig(loss=loss, **common), seed)
-    schedule = CoPESIConfig if tuning.coteaching_schedule == "learned" else reset_every_step_schedule
-    config = schedule(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
-    if cell.method == "co_pesi_estimated":
-        # A.9: the forget number comes from Algorithm 5 on the preferences so far, not the true noise.
-        return EstimatedNoiseCoPESILearner(model, config, seed)
-    return CoPESILearner(model, cell.noise, config, seed)
+    return LEARNERS[cell.method](cell, model, common, seed)
 
 
 class RunStreams(NamedTuple):
@@ -300,7 +363,10 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed, cell.ground_truth)
         truth = cell.ground_truth
         task = domain_spec(cell.domain).make_task()
-        teacher = ScriptedPreferenceTeacher(truth, cell.noise, np.random.default_rng(teacher_seq))
+        phi = domain_spec(cell.domain).candidates
+        teacher = ScriptedPreferenceTeacher(
+            truth, cell.noise, np.random.default_rng(teacher_seq), cell.teacher, scale=phi.high - phi.low
+        )
         learner = make_learner(cell, model, integer_seed(learner_seq))
         learn_rng = np.random.default_rng(learn_seq)
         h = cell.data.history
@@ -316,8 +382,8 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             if episode % cell.eval_every == 0:
                 current = model if learner is None else learner.model
                 metrics = evaluate(task, current, checkpoints[episode // cell.eval_every], truth)
-                if isinstance(learner, CoPESILearner):
-                    precision, recall = learner.filter_precision_recall(teacher.flipped)
+                if hasattr(learner, "filter_precision_recall"):
+                    precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
                     metrics |= {"filter_precision": precision, "filter_recall": recall}
                 rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
             if episode == cell.episodes or learner is None:
@@ -338,4 +404,5 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         seed=cell.seed,
         ground_truth=round(truth, 6),
         n_candidates=cell.n_candidates,
+        **({} if cell.teacher == TeacherModel() else {"teacher": cell.teacher.name}),
     )

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from hipref.learners.sysid import SIModel
-from hipref.teachers.preference import PreferenceQuery, preference_label_vector
+from hipref.teachers.preference import NoLabel, PreferenceQuery, preference_label_vector
 from hipref.validation import check_choice, check_int, check_range
 
 SI_LOSSES: tuple[str, ...] = ("soft", "standard")
@@ -188,6 +188,8 @@ class PESILearner:
         self._indices: list[np.ndarray] = []
         self._labels: list[np.ndarray] = []
         self._last_slice: np.ndarray | None = None
+        # Answers without a label (SKIP, EQUAL), which D does not hold.
+        self.unlabelled = 0
 
     def __len__(self) -> int:
         """|D|, the number of preferences received."""
@@ -246,13 +248,20 @@ class PESILearner:
         probs = (1.0 - mix) * probs + mix / size
         return probs / probs.sum()
 
-    def tell(self, query: PreferenceQuery, label: int | np.ndarray) -> None:
-        """Alg. 2 'ask for preference y, update SI': store it in D, learn (refuses a malformed label)."""
+    def tell(self, query: PreferenceQuery, label: int | np.ndarray | NoLabel) -> None:
+        """Alg. 2 'ask for preference y, update SI': store it in D, learn (refuses a malformed label).
+
+        A SKIP or EQUAL answer (`hipref.teachers.models`) carries no label: nothing is stored and SI is not
+        updated. Eq. 2 with y = 0 would be no update either: its target is then SI's own Pr, so the gradient
+        vanishes. `unlabelled` counts such answers."""
         if len(query.candidates) != self.config.n_candidates:
             raise ValueError(
                 f"query must have n_candidates={self.config.n_candidates} candidates, "
                 f"got {len(query.candidates)}"
             )
+        if isinstance(label, NoLabel):
+            self.unlabelled += 1
+            return
         label_vector = preference_label_vector(label, self.config.n_candidates)
         indices = np.array([self.candidates.index_of(c) for c in query.candidates])
         self._features.append(self._check_features(query.features))

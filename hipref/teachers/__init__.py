@@ -6,6 +6,7 @@ from hipref.teachers.feedback import (
     ScriptedFeedbackTeacher,
     validate_feedback,
 )
+from hipref.teachers.models import EQUAL, SKIP, TEACHER_KINDS, NoLabel, TeacherModel
 from hipref.teachers.preference import (
     PreferenceQuery,
     ScriptedPreferenceTeacher,
@@ -14,11 +15,16 @@ from hipref.teachers.preference import (
 )
 
 __all__ = [
+    "EQUAL",
     "FEEDBACK_VALUES",
+    "SKIP",
+    "TEACHER_KINDS",
     "FeedbackQuery",
+    "NoLabel",
     "PreferenceQuery",
     "ScriptedFeedbackTeacher",
     "ScriptedPreferenceTeacher",
+    "TeacherModel",
     "preference_label_vector",
     "preferred_index",
     "validate_feedback",

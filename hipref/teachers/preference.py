@@ -14,7 +14,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hipref.teachers.models import (
+    EQUAL,
+    RULES,
+    SKIP,
+    NoLabel,
+    TeacherModel,
+    TeacherState,
+    equally_near,
+    nearest,
+)
 from hipref.validation import check_range
+
+__all__ = [
+    "EQUAL",
+    "SKIP",
+    "NoLabel",
+    "PreferenceQuery",
+    "ScriptedPreferenceTeacher",
+    "TeacherModel",
+    "equally_near",
+    "pair_labels",
+    "preference_label_vector",
+    "preferred_index",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,12 +97,6 @@ def preferred_index(label_vector: np.ndarray) -> int:
     return int(np.argmax(label_vector))
 
 
-def equally_near(distance: np.ndarray, other: np.ndarray | float) -> np.ndarray:
-    """Where two distances to the true parameter count as equal: a tie, which the teacher breaks at
-    random (the candidates' grid puts some exactly midway)."""
-    return np.isclose(distance, other, rtol=1e-9, atol=1e-12)
-
-
 def pair_labels(
     first: np.ndarray, second: np.ndarray, true_parameter: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -96,52 +113,97 @@ class ScriptedPreferenceTeacher:
     flipped independently and uniformly. For two candidates a flip is y -> -y; for N > 2 the preferred
     candidate is replaced by one of the other N - 1, chosen uniformly.
 
+    `model` replaces 'closest to the true parameter' by another teacher model (`hipref.teachers.models`:
+    B-Pref's stochastic, skip, equal and myopic teachers, and distance-dependent confusion); the uniform flip
+    of probability `noise` still comes after it. The default, 'mistake', is the paper's teacher, and draws
+    exactly what it always drew. A 'skip' or 'equal' answer is `SKIP` or `EQUAL` instead of a label; it is
+    never flipped.
+
     Ties (two candidates equally close, up to floating-point rounding) are broken uniformly at random with
     the teacher's rng rather than by position: a positional rule would make every tie favour candidates[0]
     and bias a learner whose queries put, say, the lower value first.
 
-    `flipped[i]` records whether the i-th answer was flipped: ground truth that only a scripted teacher
-    knows, kept to score a noise filter against (`CoPESILearner.filter_precision_recall`) and never shown
-    to the learner, which is told the label alone.
+    `flipped[i]` records whether the i-th answer was wrong against the oracle (for the paper's teacher:
+    whether it was flipped) and `labelled[i]` whether it carried a label at all; `wrong_labels` lists the
+    flags of the labelled answers alone, one per preference a learner stores. That is ground truth only a
+    scripted teacher knows, kept to score a noise filter against (`CoPESILearner.filter_precision_recall`)
+    and to measure the true noise; it is never shown to the learner, which is told the label alone.
     """
 
-    def __init__(self, true_parameter: float, noise: float, rng: np.random.Generator) -> None:
+    def __init__(
+        self,
+        true_parameter: float,
+        noise: float,
+        rng: np.random.Generator,
+        model: TeacherModel | None = None,
+        scale: float = 1.0,
+    ) -> None:
         """
         Args:
             true_parameter: the environment's actual parameter (desk height in m or cube mass in kg).
-            noise: probability of flipping each answer, in [0, 1].
-            rng: source of tie-breaking and flips.
+            noise: probability of flipping each labelled answer, in [0, 1] (0 for the 'oracle' model).
+            rng: source of tie-breaking, the model's draws and flips.
+            model: the teacher model (default: 'mistake', the paper's teacher).
+            scale: the width R of the parameter's range, in its unit: the model's distances are fractions
+                of it, r(phi) = -|phi - phi*| / R.
         """
         if not (isinstance(true_parameter, numbers.Real) and math.isfinite(true_parameter)):
             raise ValueError(f"true_parameter must be a finite number, got {true_parameter!r}")
         check_range("noise", noise, 0.0, 1.0)
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"rng must be a numpy.random.Generator, got {rng!r}")
+        model = model if model is not None else TeacherModel()
+        if not isinstance(model, TeacherModel):
+            raise ValueError(f"model must be a TeacherModel, got {model!r}")
+        if model.kind == "oracle" and noise != 0:
+            raise ValueError(f"noise must be 0 for the 'oracle' teacher model, got {noise!r}")
+        check_range("scale", scale, 1e-12, math.inf)
         self.true_parameter = float(true_parameter)
         self.noise = float(noise)
         self.rng = rng
+        self.model = model
+        self.scale = float(scale)
+        self._state = TeacherState(rng)
         self.flipped: list[bool] = []
+        self.labelled: list[bool] = []
+
+    @property
+    def wrong_labels(self) -> list[bool]:
+        """Whether each labelled answer was wrong, in order: one flag per preference a learner stored."""
+        return [wrong for wrong, labelled in zip(self.flipped, self.labelled, strict=True) if labelled]
 
     def closest(self, candidates: tuple[float, ...]) -> int:
         """Index of the candidate nearest the true parameter, ties broken uniformly with the rng."""
-        distance = np.abs(np.asarray(candidates, dtype=np.float64) - self.true_parameter)
-        nearest = np.flatnonzero(equally_near(distance, distance.min()))
-        return int(nearest[0]) if nearest.size == 1 else int(self.rng.choice(nearest))
+        return nearest(np.abs(np.asarray(candidates, dtype=np.float64) - self.true_parameter), self.rng)
 
-    def answer(self, query: PreferenceQuery) -> int | np.ndarray:
-        """y in {-1, 1} for two candidates (Eq. 2), else the Eq. 3 label vector; `flipped` records whether
-        this answer was flipped."""
+    def answer(self, query: PreferenceQuery) -> int | np.ndarray | NoLabel:
+        """y in {-1, 1} for two candidates (Eq. 2), else the Eq. 3 label vector, or SKIP / EQUAL;
+        `flipped` records whether this answer was wrong and `labelled` whether it was a label."""
         n = len(query.candidates)
-        preferred = self.closest(query.candidates)
+        values = np.asarray(query.candidates, dtype=np.float64)
+        distance = np.abs(values - self.true_parameter)
+        preferred = self._state_answer(values)
+        if isinstance(preferred, NoLabel):
+            self.flipped.append(False)
+            self.labelled.append(False)
+            return preferred
+        base_right = bool(equally_near(distance[preferred], distance.min()))
         # No draw at zero noise, so a noise-free teacher's rng serves tie-breaking alone.
         flip = self.noise > 0 and self.rng.random() < self.noise
         if flip:
             # Uniform flip: any of the other candidates, each equally likely.
             others = [i for i in range(n) if i != preferred]
             preferred = int(others[self.rng.integers(len(others))])
-        self.flipped.append(bool(flip))
+        final_right = bool(equally_near(distance[preferred], distance.min()))
+        # A flip of a right answer is wrong even between two equally near candidates (the paper's record).
+        self.flipped.append(bool(not final_right or (flip and base_right)))
+        self.labelled.append(True)
         if n == 2:
             return 1 if preferred == 0 else -1
         label = np.full(n, -1.0 / (n - 1))
         label[preferred] = 1.0
         return label
+
+    def _state_answer(self, values: np.ndarray) -> int | NoLabel:
+        offsets = (values - self.true_parameter) / self.scale
+        return RULES[self.model.kind](self.model, offsets, self._state)

@@ -1,0 +1,279 @@
+"""Teachers and robustness (notebook 11, beyond the paper): which learner is best under which teacher.
+
+The matrix teacher model x learner (`hipref.teachers.models`, `hipref.learners.robust`), in both domains.
+Every learner of one environment (truth, seed) meets the same teacher draws, the same learning clips and
+the same evaluation episodes as plain PESI (`hipref.experiments.si_run`), so each is compared with PESI as
+a paired difference at the last evaluation (`hipref.verdicts`). The paper's flip teacher ('mistake') flips
+at `noise`; the other teachers' errors come from their own model, whose defaults make about as many wrong
+answers on uniformly drawn pairs (`TeacherModel`). Beside the runs, `teacher_noise` measures, for every
+teacher and environment, the true share of wrong answers among the labelled ones and the maximum marginal
+likelihood estimate of the flip rate on the same preferences (what the estimated-rate learners see).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hipref.experiments.domains import DOMAINS, domain_spec
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_pretraining import PretrainData, pretrained_model
+from hipref.experiments.si_run import METHODS as SI_METHODS
+from hipref.experiments.si_run import LearningSpec, SIRun, learning_clips, run_si, run_streams
+from hipref.learners.noise_rate import likelihood_noise
+from hipref.learners.pesi import PESIConfig, PESILearner
+from hipref.learners.robust import buffer_preferences
+from hipref.numerics import one_thread
+from hipref.results import tidy_rows
+from hipref.seeds import integer_seed
+from hipref.sweep import run_sweep
+from hipref.teachers.models import TEACHER_KINDS, TeacherModel
+from hipref.teachers.preference import ScriptedPreferenceTeacher
+from hipref.validation import check_choice, check_int, check_range
+from hipref.verdicts import Difference, better, combine, paired_difference
+
+BASELINE = "pesi"
+"""Every learner is compared with plain PESI (Eq. 2) under the same teacher."""
+
+LEARNERS: tuple[str, ...] = (
+    "pesi",
+    "pesi_smoothed",
+    "pesi_unbiased",
+    "pesi_small_loss",
+    "pesi_rime",
+    "co_pesi_likelihood",
+)
+"""The learners of the matrix: PESI, then the robust ones (`hipref.learners.robust`)."""
+
+TEACHERS: tuple[str, ...] = ("mistake", "stochastic", "skip", "equal", "myopic", "distance")
+"""The teachers of the matrix: the paper's flip and the other models, each with its default parameters."""
+
+
+@dataclass(frozen=True)
+class RobustnessConfig(Protocol):
+    """Parameters of notebook 11 (the quick profile's sizes by default)."""
+
+    domains: tuple[str, ...] = ("wiping", "pushing")
+    """Domains to run: 'wiping' (desk height) and 'pushing' (cube mass)."""
+    teachers: tuple[str, ...] = TEACHERS
+    """Teacher models (`hipref.teachers.models.TEACHER_KINDS`)."""
+    methods: tuple[str, ...] = LEARNERS
+    """Learners; must include the baseline 'pesi'."""
+    noise: float = 0.2
+    """The flip rate of the 'mistake' teacher (the paper's middle level); the other teachers flip nothing
+    on top of their own errors."""
+    heights: tuple[float, ...] = (0.6,)
+    """True desk heights in m of the wiping environments, each in [0.5, 0.9] (notebook 04's, so its
+    learning clips and evaluation episodes are reused)."""
+    masses: tuple[float, ...] = (11.0,)
+    """True cube masses in kg of the pushing environments, each in [8, 20]."""
+    eval_every: int = 66
+    """Learning episodes between evaluations: one evaluation before learning and one at the end."""
+    eval_episodes: int = 5
+    """Evaluation episodes per evaluation (section 5: 10)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name, values, allowed in (
+            ("domains", self.domains, tuple(DOMAINS)),
+            ("teachers", self.teachers, TEACHER_KINDS),
+            ("methods", self.methods, SI_METHODS),
+        ):
+            if not values:
+                raise ValueError(f"{name} must name at least one of {sorted(allowed)}, got ()")
+            for value in values:
+                check_choice(name, value, allowed)
+        if BASELINE not in self.methods:
+            raise ValueError(f"methods must include the baseline {BASELINE!r}, got {self.methods!r}")
+        check_range("noise", self.noise, 0.0, 1.0)
+
+    def teacher_noise(self, teacher: str) -> float:
+        """The uniform flip rate of a teacher's runs: `noise` for the paper's teacher, else 0."""
+        return self.noise if teacher == "mistake" else 0.0
+
+
+def cells(config: RobustnessConfig) -> list[SIRun]:
+    """The sweep: domain x teacher x learner x environment (truth, seed)."""
+    return [
+        config.run_cell(
+            domain,
+            method,
+            truth,
+            seed,
+            noise=config.teacher_noise(teacher),
+            teacher=TeacherModel(teacher),
+        )
+        for domain in config.domains
+        for teacher in config.teachers
+        for method in config.methods
+        for truth, seed in config.environments(domain)
+    ]
+
+
+@dataclass(frozen=True)
+class TeacherNoiseCell:
+    """One teacher answering one environment's learning queries, without any learner updating."""
+
+    domain: str
+    """'wiping' or 'pushing'."""
+    teacher: str
+    """The teacher model's kind."""
+    noise: float
+    """Its uniform flip rate."""
+    ground_truth: float
+    """The environment's true parameter."""
+    seed: int
+    """The environment's seed (with the truth, the same teacher and query streams as its SI runs)."""
+    episodes: int
+    """Queries answered."""
+    data: PretrainData
+    """Algorithm 4's data: the model whose clips the queries replay."""
+
+    def __post_init__(self) -> None:
+        check_choice("teacher", self.teacher, TEACHER_KINDS)
+        check_int("episodes", self.episodes, 1)
+
+
+class _BufferOnly(PESILearner):
+    """A PESI learner that asks and stores but never updates SI: its buffer is the runs' buffer."""
+
+    def _learn(self) -> None:
+        pass
+
+
+def run_teacher_noise(cell: TeacherNoiseCell) -> pd.DataFrame:
+    """The true and the estimated noise of one teacher on one environment's queries (a sweep cell).
+
+    The queries are those every learner of the environment asks (uniform candidates: they do not depend on
+    the learner), answered by the teacher with the runs' own stream, so the answers are the runs' answers.
+    Metrics at episode = episodes: true_noise (wrong share of the labelled answers), estimated_noise (the
+    maximum marginal likelihood flip rate of the labelled ones, `likelihood_noise`), unlabelled_share (the
+    share of answers without a label, SKIP or EQUAL)."""
+    spec = domain_spec(cell.domain)
+    model = pretrained_model(cell.domain, cell.data)
+    with one_thread():
+        teacher_seq, learner_seq, _, _ = run_streams(cell.seed, cell.ground_truth)
+        phi = spec.candidates
+        teacher = ScriptedPreferenceTeacher(
+            cell.ground_truth,
+            cell.noise,
+            np.random.default_rng(teacher_seq),
+            TeacherModel(cell.teacher),
+            scale=phi.high - phi.low,
+        )
+        h = cell.data.history
+        clips = learning_clips(
+            spec.make_task(),
+            LearningSpec(cell.domain, cell.ground_truth, cell.seed, 2, h),
+            cell.episodes,
+            model,
+        )
+        learner = _BufferOnly(model, PESIConfig(history=h), integer_seed(learner_seq))
+        for recorded in clips:
+            query = learner.ask(lambda phi, rng, recorded=recorded: recorded.replay(phi, h, rng))
+            learner.tell(query, teacher.answer(query))
+    labelled = len(learner)
+    metrics = {
+        "true_noise": float(np.mean(teacher.wrong_labels)) if labelled else np.nan,
+        "estimated_noise": (
+            likelihood_noise(buffer_preferences(learner), phi.low, phi.high) if labelled else np.nan
+        ),
+        "unlabelled_share": 1.0 - labelled / cell.episodes,
+    }
+    rows = [(cell.episodes, name, value) for name, value in metrics.items() if np.isfinite(value)]
+    return tidy_rows(
+        rows,
+        domain=cell.domain,
+        method="teacher",
+        noise=cell.noise,
+        seed=cell.seed,
+        ground_truth=round(cell.ground_truth, 6),
+        teacher=cell.teacher,
+    )
+
+
+def noise_cells(config: RobustnessConfig) -> list[TeacherNoiseCell]:
+    """One teacher-noise cell per domain, teacher and environment."""
+    return [
+        TeacherNoiseCell(
+            domain, teacher, config.teacher_noise(teacher), truth, seed, config.episodes, config.data
+        )
+        for domain in config.domains
+        for teacher in config.teachers
+        for truth, seed in config.environments(domain)
+    ]
+
+
+def run(config: RobustnessConfig, **sweep: Any) -> pd.DataFrame:
+    """Tidy rows of every run (`run_si`, with filter precision and recall where a learner filters) and of
+    every teacher's noise (`run_teacher_noise`, method 'teacher'); a `teacher` column names the model."""
+    config.pretrain(config.domains, sweep.get("cache_dir"))
+    runs = run_sweep(run_si, cells(config), desc="teachers x learners", **sweep)
+    noise = run_sweep(run_teacher_noise, noise_cells(config), desc="teacher noise", **sweep)
+    if "teacher" not in runs.columns:
+        runs["teacher"] = "mistake"
+    # The paper's teacher leaves its rows as every other study's (no teacher column): name it here.
+    runs["teacher"] = runs["teacher"].fillna("mistake")
+    return pd.concat([runs, noise], ignore_index=True)
+
+
+def final_difference(
+    rows: pd.DataFrame, domain: str, teacher: str, method: str, metric: str, *, resamples: int = 5000
+) -> Difference:
+    """`method` minus PESI on `metric` at the last evaluation under `teacher` in `domain`, paired over the
+    environments (`hipref.verdicts.paired_difference`)."""
+    at = rows[(rows["domain"] == domain) & (rows["teacher"] == teacher)]
+    if at.empty:
+        raise ValueError(f"no rows for domain={domain!r} and teacher={teacher!r}")
+    return paired_difference(at, metric=metric, method=method, baseline=BASELINE, resamples=resamples)
+
+
+def difference_table(rows: pd.DataFrame, *, resamples: int = 5000) -> pd.DataFrame:
+    """Every learner but PESI minus PESI, per domain and teacher, on param_error and success_rate at the
+    last evaluation: columns domain, teacher, method, metric, mean, low, high, n."""
+    runs = rows[rows["method"] != "teacher"]
+    out = []
+    for (domain, teacher), group in runs.groupby(["domain", "teacher"], sort=False):
+        for method in [m for m in group["method"].unique() if m != BASELINE]:
+            for metric in ("param_error", "success_rate"):
+                d = final_difference(group, domain, teacher, method, metric, resamples=resamples)
+                out.append(
+                    dict(
+                        domain=domain,
+                        teacher=teacher,
+                        method=method,
+                        metric=metric,
+                        mean=d.mean,
+                        low=d.low,
+                        high=d.high,
+                        n=d.n,
+                    )
+                )
+    return pd.DataFrame(out, columns=["domain", "teacher", "method", "metric", "mean", "low", "high", "n"])
+
+
+def best_learner(table: pd.DataFrame, domain: str, teacher: str) -> tuple[str, str, str]:
+    """The learner with the lowest mean final error difference to PESI under `teacher` in `domain`, and the
+    claim 'it improves on PESI' tested on both metrics: `better` (the 95% interval wholly on the better
+    side) for the error and for the success rate; 'yes' if both hold, 'partly' if one does, 'no' if neither
+    (`combine`). Returns (learner, verdict, the measured differences as text)."""
+    at = table[(table["domain"] == domain) & (table["teacher"] == teacher)]
+    errors = at[at["metric"] == "param_error"].set_index("method")
+    if errors.empty:
+        raise ValueError(f"no differences for domain={domain!r} and teacher={teacher!r}")
+    method = str(errors["mean"].idxmin())
+    success = at[(at["metric"] == "success_rate") & (at["method"] == method)].iloc[0]
+    error = errors.loc[method]
+    error_d = Difference(error["mean"], error["low"], error["high"], int(error["n"]))
+    success_d = Difference(success["mean"], success["low"], success["high"], int(success["n"]))
+    parts = [better(error_d, lower_is_better=True), better(success_d, lower_is_better=False)]
+    held = combine(["yes" if part == "yes" else "no" for part in parts])
+    text = (
+        f"{method} - pesi ({error_d.n} environments): error {error_d.mean:+.3g} "
+        f"[{error_d.low:+.3g}, {error_d.high:+.3g}], success {success_d.mean:+.2f} "
+        f"[{success_d.low:+.2f}, {success_d.high:+.2f}]"
+    )
+    return method, held, text

@@ -1,0 +1,192 @@
+"""The robust learners (`hipref.learners.robust`): each one's defining property."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from hipref.learners.coteaching import CoPESIConfig, SIUpdateRecord
+from hipref.learners.noise_rate import likelihood_noise
+from hipref.learners.pesi import pesi_loss
+from hipref.learners.robust import (
+    LabelSmoothingPESILearner,
+    LikelihoodNoiseCoPESILearner,
+    RobustPESIConfig,
+    SmallLossPESILearner,
+    TrustFlipPESILearner,
+    UnbiasedPESILearner,
+    buffer_preferences,
+    conservative_pesi_loss,
+    preference_nll,
+    unbiased_pesi_loss,
+)
+from hipref.learners.sysid import DESK_HEIGHT, SIModel
+from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
+from tests._clips import shown
+
+FEATURES = np.array([0.3, -1.0, 2.0, 0.5])
+
+
+@pytest.fixture(autouse=True)
+def _single_thread(single_thread: None) -> None:
+    """Every test here runs torch on one thread (tests/conftest.py)."""
+
+
+def _pairs(seed: int, batch: int = 8) -> tuple[torch.Tensor, torch.Tensor]:
+    generator = torch.Generator().manual_seed(seed)
+    logits = torch.randn(batch, 2, generator=generator, requires_grad=True)
+    y = torch.where(torch.rand(batch, generator=generator) < 0.5, 1.0, -1.0)
+    return logits, y
+
+
+def _grad(loss_of: object, logits: torch.Tensor) -> torch.Tensor:
+    logits.grad = None
+    loss_of(torch.log_softmax(logits, dim=1)).backward()  # type: ignore[operator]
+    return logits.grad.clone()
+
+
+@pytest.mark.parametrize("rate", [0.0, 0.1, 0.3, 0.45])
+@pytest.mark.parametrize("seed", range(3))
+def test_the_unbiased_losss_expectation_under_flips_equals_the_clean_loss(rate: float, seed: int) -> None:
+    logits, y = _pairs(seed)
+    pair = torch.log_softmax(logits, dim=1)
+    expected = (1 - rate) * unbiased_pesi_loss(pair, y, 0.25, rate) + rate * unbiased_pesi_loss(
+        pair, -y, 0.25, rate
+    )
+    torch.testing.assert_close(expected, pesi_loss(pair, y, 0.25))
+    # In gradient too, and the unbiased gradient is Eq. 2's scaled by 1 / (1 - 2 e).
+    unbiased = _grad(lambda p: unbiased_pesi_loss(p, y, 0.25, rate), logits)
+    torch.testing.assert_close(unbiased, _grad(lambda p: pesi_loss(p, y, 0.25), logits) / (1 - 2 * rate))
+
+
+@pytest.mark.parametrize("smoothing", [0.0, 0.1, 0.3])
+def test_label_smoothing_trusts_the_label_with_1_minus_eps_and_scales_eq2s_step_by_1_minus_2eps(
+    smoothing: float,
+) -> None:
+    logits, y = _pairs(4)
+    pair = torch.log_softmax(logits, dim=1)
+    mixed = (1 - smoothing) * pesi_loss(pair, y, 0.25) + smoothing * pesi_loss(pair, -y, 0.25)
+    torch.testing.assert_close(conservative_pesi_loss(pair, y, 0.25, smoothing), mixed)
+    smoothed = _grad(lambda p: conservative_pesi_loss(p, y, 0.25, smoothing), logits)
+    torch.testing.assert_close(smoothed, (1 - 2 * smoothing) * _grad(lambda p: pesi_loss(p, y, 0.25), logits))
+
+
+def test_the_preference_loss_is_minus_log_pr_of_the_preferred_candidate() -> None:
+    pair = torch.log(torch.tensor([[0.9, 0.1], [0.9, 0.1]]))
+    torch.testing.assert_close(
+        preference_nll(pair, torch.tensor([1.0, -1.0])), torch.tensor([-math.log(0.9), -math.log(0.1)])
+    )
+
+
+def _learner(kind: type, seed: int = 0, **config: object):
+    model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(32, 16), seed=seed)
+    return kind(model, RobustPESIConfig(**{"history": 1, "start_size": 8, "batch_size": 16, **config}), seed)
+
+
+def _teach(learner: object, truth: float, noise: float, n: int, seed: int = 2) -> ScriptedPreferenceTeacher:
+    teacher = ScriptedPreferenceTeacher(truth, noise, np.random.default_rng(seed))
+    for _ in range(n):
+        query = learner.ask(shown(FEATURES))  # type: ignore[attr-defined]
+        learner.tell(query, teacher.answer(query))  # type: ignore[attr-defined]
+    return teacher
+
+
+def test_a_perfect_filters_precision_and_recall_are_1_on_a_constructed_batch() -> None:
+    learner = _learner(SmallLossPESILearner)
+    _teach(learner, 0.7, 0.0, 6)
+    flipped = np.array([False, True, False, False, True, False])
+    learner.si_updates = [SIUpdateRecord(np.arange(6), np.flatnonzero(flipped))]
+    assert learner.filter_precision_recall(flipped) == (1.0, 1.0)
+    learner.si_updates = [SIUpdateRecord(np.arange(6), np.array([0, 1]))]  # one right, one missed
+    assert learner.filter_precision_recall(flipped) == (0.5, 0.5)
+
+
+def test_the_small_loss_filter_forgets_the_estimated_share_with_the_largest_loss_under_si() -> None:
+    learner = _learner(SmallLossPESILearner, learning_rate=0.1)
+    _teach(learner, 0.8, 0.2, 60)
+    record, rate = learner.si_updates[-1], learner.noise_history[-1]
+    assert len(record.forgotten) == math.floor(rate * len(record.batch) + 0.5)
+    assert rate == pytest.approx(min(0.4, likelihood_noise(buffer_preferences(learner), 0.5, 0.9)))
+    with torch.no_grad():
+        losses = preference_nll(*learner._pair_tensors(record.batch))
+    forgotten = np.isin(record.batch, record.forgotten)
+    assert losses[torch.as_tensor(forgotten)].min() >= losses[torch.as_tensor(~forgotten)].max()
+
+
+def test_small_loss_filtering_finds_flips_better_than_chance_once_si_has_learnt() -> None:
+    learner = _learner(SmallLossPESILearner, learning_rate=0.1)
+    teacher = _teach(learner, 0.8, 0.2, 120, seed=5)
+    precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
+    assert precision > 0.3  # chance is the flip rate, 0.2
+    assert recall > 0.2
+
+
+def test_rime_trusts_small_losses_flips_very_large_ones_and_leaves_out_the_rest() -> None:
+    learner = _learner(TrustFlipPESILearner, trust_spread_start=0.0, trust_spread_end=0.0)
+    assert learner.trust_threshold(torch.tensor([0.1, 5.0])) == pytest.approx(math.log(2))
+    learner = _learner(
+        TrustFlipPESILearner, trust_spread_start=2.0, trust_spread_end=1.0, trust_spread_decay=0.5
+    )
+    losses = torch.tensor([0.0, 1.0])
+    spread = float(losses.std())
+    assert learner.trust_threshold(losses) == pytest.approx(math.log(2) + 2.0 * spread)
+    learner.filtered_updates = 10  # decayed to its floor
+    assert learner.trust_threshold(losses) == pytest.approx(math.log(2) + 1.0 * spread)
+    # In a run: every left-out or flipped entry of an update is recorded as forgotten.
+    learner = _learner(TrustFlipPESILearner, learning_rate=0.1)
+    _teach(learner, 0.8, 0.3, 60)
+    assert learner.filtered_updates == 60 - 8
+    record = learner.si_updates[-1]
+    with torch.no_grad():
+        losses = preference_nll(*learner._pair_tensors(record.batch)).numpy()
+    assert np.all(losses[np.isin(record.batch, record.forgotten)] >= math.log(2))
+
+
+def test_the_unbiased_learner_estimates_the_rate_by_marginal_likelihood_before_each_update() -> None:
+    learner = _learner(UnbiasedPESILearner)
+    _teach(learner, 0.6, 0.2, 30)
+    assert len(learner.noise_history) == 30 - 8
+    assert learner.noise_history[-1] == pytest.approx(
+        min(0.4, likelihood_noise(buffer_preferences(learner), 0.5, 0.9))
+    )
+
+
+def test_label_smoothing_learns_from_clean_preferences() -> None:
+    learner = _learner(LabelSmoothingPESILearner, learning_rate=0.1)
+    initial = abs(learner.estimate(FEATURES) - 0.843)
+    _teach(learner, 0.843, 0.0, 150)
+    assert abs(learner.estimate(FEATURES) - 0.843) < 0.5 * initial
+
+
+def test_co_pesi_likelihood_forgets_the_marginal_likelihood_rate_of_its_buffer() -> None:
+    model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
+    config = CoPESIConfig(history=1, start_size=8, rounds=2)
+    learner = LikelihoodNoiseCoPESILearner(model, config, seed=0)
+    _teach(learner, 0.7, 0.25, 30)
+    assert len(learner.noise_history) == 30 - 8
+    assert learner.noise_level == learner.noise_history[-1]
+    assert learner.noise_level == pytest.approx(likelihood_noise(buffer_preferences(learner), 0.5, 0.9))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"n_candidates": 3}, "n_candidates"),
+        ({"smoothing": 0.5}, "smoothing"),
+        ({"max_rate": 0.5}, "max_rate"),
+        ({"flip_probability": 0.9}, "flip_probability"),
+        ({"trust_spread_end": 5.0}, "trust_spread_end"),
+    ],
+)
+def test_invalid_robust_configs_are_refused(kwargs: dict[str, object], message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        RobustPESIConfig(**kwargs)
+
+
+def test_robust_learners_store_nothing_for_a_skip() -> None:
+    from hipref.teachers.models import SKIP
+
+    learner = _learner(SmallLossPESILearner)
+    learner.tell(PreferenceQuery(learner.ask(shown(FEATURES)).candidates, FEATURES), SKIP)
+    assert len(learner) == 0 and learner.si_updates == []
