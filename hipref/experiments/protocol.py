@@ -70,7 +70,8 @@ class Protocol:
 
     def truths(self, domain: str) -> tuple[float, ...]:
         """The grid of true parameters of `domain`."""
-        return self.heights if domain_spec(domain).name == "wiping" else self.masses
+        grids = {"wiping": self.heights, "pushing": self.masses}
+        return grids[domain_spec(domain).name]
 
     def environments(self, domain: str) -> list[tuple[float, int]]:
         """Every (ground truth, seed) of `domain`: the grid crossed with the seeds."""
