@@ -64,7 +64,7 @@ nbval: install
 		--nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
 
 lab: install
-	$(VENV)/bin/jupyter lab notebooks
+	$(VENV)/bin/jupyter lab --ServerApp.allow_root=True notebooks
 
 bench: install
 	$(PY) -m hipref.bench.physics

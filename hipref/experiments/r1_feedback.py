@@ -60,7 +60,7 @@ class R1Config:
     max_steps: int = 120
     """High-level steps per episode at most (A.7: 290); the flat policy gets the same simulated time."""
     seeds: int = 2
-    """Independent runs per method (paper: not given; full profile 4)."""
+    """Independent runs per method (paper: not given; full profile 2)."""
     desk_height: float = 0.7
     """True desk height in m, given to the controller (no SI in R1); in [0.5, 0.9]."""
     coach_learning_rate: float = 0.5
