@@ -42,7 +42,7 @@ class ControllersConfig:
     """Errors of the desk-height estimate in m for the success curve."""
     mass_errors: tuple[float, ...] = tuple(float(e) for e in range(-6, 7))
     """Errors of the cube-mass estimate in kg for the success curve."""
-    curve_seeds: int = 20
+    curve_seeds: int = 10
     """Random episodes (parameter, start and goal) per estimate error."""
     seed: int = 0
     """Root seed; every episode's seed derives from it."""

@@ -55,7 +55,7 @@ START: Cell = (0, 0)
 class R1Config:
     """Parameters of notebook 01 (defaults: the quick profile; the paper's values in params/full)."""
 
-    episodes: int = 15
+    episodes: int = 10
     """Learning episodes per run (A.7: 50)."""
     max_steps: int = 120
     """High-level steps per episode at most (A.7: 290); the flat policy gets the same simulated time."""

@@ -30,9 +30,9 @@ class TeachConfig:
     unless `reveal_truth`."""
     seed: int = 0
     """Seed of the queries, the layouts, the sides the candidates are shown on and the stand-in."""
-    preference_queries: int = 12
+    preference_queries: int = 6
     """Preference queries planned (PESI's learning episodes)."""
-    feedback_steps: int = 12
+    feedback_steps: int = 6
     """Length in high-level steps of the feedback episode (A.7 allows 290; a person's episode is short)."""
     desk_height: float = 0.7
     """Desk height in m of the feedback episode, known to its controller (R1 is about the high level)."""
