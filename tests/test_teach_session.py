@@ -232,3 +232,15 @@ def test_config_refuses_bad_values():
         TeachConfig(true_parameter=1.5)
     with pytest.raises(ValueError, match="session must be a file name"):
         TeachConfig(session="../elsewhere.jsonl")
+
+
+def test_nothing_is_prepared_once_every_query_is_answered(results):
+    config = TeachConfig(**{**SMALL, "preference_queries": 2})
+    teaching = PreferenceTeaching(config, open_session(config), render=False)
+    teaching.answer("left", 1.0)
+    teaching.answer("right", 1.0)
+    assert teaching.current is None and teaching._next is None  # no query beyond the planned ones
+    resumed = PreferenceTeaching(config, teaching.session, render=False)
+    assert resumed.current is None and resumed._next is None
+    for session in (teaching, resumed):
+        session.close()

@@ -105,7 +105,6 @@ class PreferenceTeaching:
         self._layouts = np.random.default_rng(streams.layouts)
         self._sides = np.random.default_rng(streams.sides)
         self.evaluation = evaluation_slices(config, self.task)
-        self.initial_estimate = self.estimate()
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hipref-next-query")
         self._next: Future[ShownQuery] | None = None
         self.current: ShownQuery | None = None
@@ -166,10 +165,9 @@ class PreferenceTeaching:
 
     def _prefetch(self) -> None:
         """Start executing and rendering the query after the current one, if the session plans one."""
-        following = self.current.number + 1 if self.current is not None else 0
         self._next = None
-        if following < self.config.preference_queries:
-            self._next = self._executor.submit(self._prepare, following, None)
+        if self.current is not None and self.current.number + 1 < self.config.preference_queries:
+            self._next = self._executor.submit(self._prepare, self.current.number + 1, None)
 
     def _replay(self, records: list[dict[str, Any]]) -> None:
         """Rebuild PESI from the stored answers, in the live order: ask k + 1, then tell k."""
