@@ -153,6 +153,15 @@ class _RobustLearner(PESILearner):
         self.optimiser.step()
         return loss.item()
 
+    def _warm_up(self, batch: np.ndarray) -> bool:
+        """While |D| <= start_size: one unfiltered Eq. 2 update on `batch`, recorded as forgetting nothing;
+        whether it was made (a filter starts once D is larger)."""
+        if len(self) > self.config.start_size:
+            return False
+        self.si_updates.append(SIUpdateRecord(batch, batch[:0]))
+        self._update_si(batch)
+        return True
+
     def _estimate(self) -> float:
         rate = estimated_flip_rate(self, self.config.max_rate)
         self.noise_history.append(rate)
@@ -194,9 +203,7 @@ class SmallLossPESILearner(_RobustLearner):
 
     def _learn(self) -> None:
         batch = self._sample_batch()
-        if len(self) <= self.config.start_size:
-            self.si_updates.append(SIUpdateRecord(batch, batch[:0]))
-            self._update_si(batch)
+        if self._warm_up(batch):
             return
         forget = min(math.floor(self._estimate() * len(batch) + 0.5), len(batch) - 1)
         with torch.no_grad():
@@ -231,9 +238,7 @@ class TrustFlipPESILearner(_RobustLearner):
 
     def _learn(self) -> None:
         batch = self._sample_batch()
-        if len(self) <= self.config.start_size:
-            self.si_updates.append(SIUpdateRecord(batch, batch[:0]))
-            self._update_si(batch)
+        if self._warm_up(batch):
             return
         pair, y = self._pair_tensors(batch)
         losses = preference_nll(pair.detach(), y)
