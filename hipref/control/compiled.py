@@ -4,18 +4,20 @@ The controllers of paper A.7 act at every physics step: SPD (Eq. 5-6) needs the 
 forces of the current state between mj_step1 and mj_step2. A Python loop around MuJoCo's bindings spends
 more time in the interpreter than in the physics, so the loop is compiled with numba instead. The compiled
 code calls the C functions of the libmujoco shipped inside the `mujoco` package (the library its bindings
-already loaded, so one MuJoCo with one global state) through ctypes, on the raw mjModel*/mjData* pointers,
-and reads and writes mjData through the numpy arrays the bindings expose, which alias mjData's memory.
+already loaded, so one MuJoCo with one global state) by their symbol names, on the raw mjModel*/mjData*
+pointers, and reads and writes mjData through the numpy arrays the bindings expose, which alias mjData's
+memory.
 
-Compiled functions that call ctypes function pointers cannot be cached on disk, so every process compiles
-the kernels at their first call, once: measured at about 2.5 s for wiping (inverse kinematics and the
-control period), 3.3 s for pushing (inverse kinematics and the push), 4.2 s for both, on the study's
-2-core machine. A sweep cell runs hundreds of rollouts, each of which the compiled loop makes 17 ms
-(wiping) to 15 ms (pushing) shorter, so the compilation pays for itself within a cell."""
+Compiling the kernels takes about 4 s per process on the study's 2-core machine (wiping's inverse
+kinematics and control period, pushing's push), and every sweep worker, notebook kernel and test process
+would pay it. Because the C functions are named rather than embedded as addresses, the compiled code is
+cached on disk (`CompiledCache`): the first process compiles, the others load it in well under a second.
+"""
 
 from __future__ import annotations
 
-import ctypes
+import hashlib
+import os
 from pathlib import Path
 from typing import NamedTuple
 
@@ -23,18 +25,14 @@ import mujoco
 import numpy as np
 
 try:
+    import llvmlite.binding
     import numba
+    from numba.core import caching
 except ImportError as error:  # a missing package or one built for another numpy
     raise ImportError(
         f"The low-level controllers are compiled with numba, which failed to import ({error}): install "
         "it with `pip install numba==0.68.1 llvmlite==0.50.0` (both pinned in environment.txt)."
     ) from error
-
-# Compiled without fastmath, so results are reproducible to the bit.
-kernel = numba.njit(no_cfunc_wrapper=True)
-"""Compiles a function called from Python."""
-subroutine = numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True)
-"""Compiles a function called only from compiled code (no Python entry point: it compiles faster)."""
 
 if int(mujoco.__version__.split(".")[0]) != 3:
     # MuJoCo 4 changed mj_fullM's arguments; the declarations below are those of 3.x (3.17.0 is pinned).
@@ -42,27 +40,84 @@ if int(mujoco.__version__.split(".")[0]) != 3:
         f"hipref's compiled controllers need MuJoCo 3.x (3.17.0 is pinned), found {mujoco.__version__}"
     )
 
+CONTROL = Path(__file__).resolve().parent
+"""The package of the compiled controllers: every compiled function lives in one of its modules."""
 
-def _libmujoco() -> ctypes.CDLL:
+
+def _control_sources_digest() -> str:
+    """What the compiled code depends on: every module of this package and the MuJoCo version."""
+    digest = hashlib.sha256(mujoco.__version__.encode())
+    for source in sorted(CONTROL.glob("*.py")):
+        digest.update(source.name.encode() + b"\0" + source.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+class CompiledCache(caching._CacheLocator):
+    """Where numba caches the compiled controllers: `__pycache__/numba-<digest>` beside this module, or,
+    where that is not writable, `~/.cache/hipref/numba-<digest>` (or `$NUMBA_CACHE_DIR/...`).
+
+    numba's own locators stamp a cached function with its own source file only, so a kernel cached before
+    an edit of a subroutine it calls from another module would be loaded stale. Here the stamp is the digest
+    of every module of the package: editing any of them compiles afresh. Functions outside this package
+    are left to numba's locators."""
+
+    DIGEST = _control_sources_digest()
+
+    def __init__(self, py_func: object, directory: Path) -> None:
+        self._lineno = py_func.__code__.co_firstlineno  # type: ignore[attr-defined]
+        self._cache_path = str(directory / f"numba-{self.DIGEST}")
+
+    def get_cache_path(self) -> str:
+        return self._cache_path
+
+    def get_source_stamp(self) -> str:
+        return self.DIGEST
+
+    def get_disambiguator(self) -> str:
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func: object, py_file: str) -> CompiledCache | None:
+        if Path(py_file).resolve().parent != CONTROL:
+            return None
+        user = Path(os.environ.get("NUMBA_CACHE_DIR") or Path.home() / ".cache" / "hipref")
+        for directory in (CONTROL / "__pycache__", user):
+            locator = cls(py_func, directory)
+            try:
+                locator.ensure_cache_path()
+            except OSError:
+                continue
+            return locator
+        return None
+
+
+caching.CacheImpl._locator_classes.insert(0, CompiledCache)
+
+# Compiled without fastmath, so results are reproducible to the bit.
+kernel = numba.njit(no_cfunc_wrapper=True, cache=True)
+"""Compiles a function called from Python."""
+subroutine = numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=True)
+"""Compiles a function called only from compiled code (no Python entry point: it compiles faster)."""
+
+
+def _load_libmujoco() -> None:
+    """Make libmujoco's symbols resolvable by the compiled code: the library the bindings loaded."""
     package = Path(mujoco.__file__).parent
     candidates = sorted(package.glob("libmujoco.so.*")) + sorted(package.glob("libmujoco.*.dylib"))
     if not candidates:
         raise ImportError(
             f"libmujoco is missing from the mujoco package at {package}; reinstall mujoco==3.17.0"
         )
-    return ctypes.CDLL(str(candidates[0]))
+    llvmlite.binding.load_library_permanently(str(candidates[0]))
 
 
-_LIB = _libmujoco()
-# Pointers travel as plain integers: numba passes an int to a ctypes function declared with c_size_t.
-_POINTER = ctypes.c_size_t
+_load_libmujoco()
+_POINTER = numba.types.uintp
+"""Pointers travel as plain integers (mjModel*, mjData*, mjtNum*)."""
 
 
-def _c_function(name: str, *argtypes: type) -> ctypes._CFuncPtr:  # type: ignore[name-defined]
-    function = getattr(_LIB, name)
-    function.argtypes = list(argtypes)
-    function.restype = None
-    return function
+def _c_function(name: str, *argtypes: numba.types.Type) -> numba.types.ExternalFunction:
+    return numba.types.ExternalFunction(name, numba.types.void(*argtypes))
 
 
 # Declarations as in MuJoCo 3.17's mujoco.h.
@@ -72,7 +127,7 @@ mj_step2 = _c_function("mj_step2", _POINTER, _POINTER)
 """void mj_step2(const mjModel* m, mjData* d): actuation, acceleration, constraint solve and integration."""
 mj_fullM = _c_function("mj_fullM", _POINTER, _POINTER, _POINTER)
 """void mj_fullM(const mjModel* m, const mjData* d, mjtNum* dst): the dense nv x nv mass matrix."""
-mj_jacSite = _c_function("mj_jacSite", _POINTER, _POINTER, _POINTER, _POINTER, ctypes.c_int)
+mj_jacSite = _c_function("mj_jacSite", _POINTER, _POINTER, _POINTER, _POINTER, numba.types.intc)
 """void mj_jacSite(const mjModel* m, const mjData* d, mjtNum* jacp, mjtNum* jacr, int site): 3 x nv each."""
 mj_kinematics = _c_function("mj_kinematics", _POINTER, _POINTER)
 """void mj_kinematics(const mjModel* m, mjData* d): body, geom and site poses from qpos."""
