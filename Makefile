@@ -56,8 +56,9 @@ test: lint pytest nbval
 lint: install
 	$(VENV)/bin/ruff check hipref tests notebooks
 
+# On every core: the slowest tests wait on kernels, browsers and worker processes, and overlap well.
 pytest: install
-	$(TEMP_RESULTS) $(VENV)/bin/pytest tests
+	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto tests
 
 nbval: install
 	$(TEMP_RESULTS) $(VENV)/bin/pytest --nbval-lax $(NOTEBOOKS) \

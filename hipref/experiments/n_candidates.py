@@ -45,5 +45,5 @@ def cells(cfg: NCandidatesConfig) -> list[SIRun]:
 
 def run(config: NCandidatesConfig, **sweep: Any) -> pd.DataFrame:
     """All runs, tidy (see `run_si`); `n_candidates` tells the runs apart. `sweep`: `run_sweep`'s options."""
-    config.pretrain((config.domain,), sweep.get("cache_dir"))
+    config.pretrain((config.domain,), **sweep)
     return run_sweep(run_si, cells(config), desc="N candidates", **sweep)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hipref.experiments.domains import domain_spec
-from hipref.experiments.si_pretraining import PretrainData, pretrained_model
+from hipref.experiments.si_pretraining import PretrainCell, PretrainData, pretrain_models
 from hipref.experiments.si_run import FineTuning, SIRun
 from hipref.sweep import CacheDir
 from hipref.validation import check_int, check_range
@@ -108,8 +108,6 @@ class Protocol:
             **setting,
         )
 
-    def pretrain(self, domains: Iterable[str], cache_dir: CacheDir = None) -> None:
-        """Algorithm 4 once, in this process, cached in `cache_dir` (None: the default directory): the
-        sweep's workers then load the model, not race to build it."""
-        for domain in domains:
-            pretrained_model(domain, self.data, cache_dir)
+    def pretrain(self, domains: Iterable[str], cache_dir: CacheDir = None, **sweep: Any) -> None:
+        """Algorithm 4 once per domain of `domains`, before the study's runs (`pretrain_models`)."""
+        pretrain_models([PretrainCell(domain, self.data) for domain in domains], cache_dir, **sweep)

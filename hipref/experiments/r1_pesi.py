@@ -36,5 +36,5 @@ def cells(cfg: R1Config) -> list[SIRun]:
 
 def run(config: R1Config, **sweep: Any) -> pd.DataFrame:
     """All runs, tidy (see `run_si`). `sweep`: `run_sweep`'s options."""
-    config.pretrain(METHODS, sweep.get("cache_dir"))
+    config.pretrain(METHODS, **sweep)
     return run_sweep(run_si, cells(config), desc="R1 PESI", **sweep)

@@ -56,5 +56,5 @@ def cells(cfg: R2Config) -> list[SIRun]:
 
 def run(config: R2Config, **sweep: Any) -> pd.DataFrame:
     """All runs, tidy (see `run_si`); OSI's rows have noise 0. `sweep`: `run_sweep`'s options."""
-    config.pretrain(config.domains, sweep.get("cache_dir"))
+    config.pretrain(config.domains, **sweep)
     return run_sweep(run_si, cells(config), desc="R2 noise", **sweep)

@@ -74,7 +74,7 @@ def cells(config: R3Config) -> list[SIRun]:
 
 def run(config: R3Config, **sweep: Any) -> pd.DataFrame:
     """Tidy rows of every run (see `run_si`), with the filter's precision and recall for CO-PESI."""
-    config.pretrain(config.domains, sweep.get("cache_dir"))
+    config.pretrain(config.domains, **sweep)
     return run_sweep(run_si, cells(config), desc="R3: " + " vs ".join(config.methods), **sweep)
 
 

@@ -20,6 +20,7 @@ import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
 from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_pretraining import PretrainCell, pretrain_models
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_range
@@ -118,8 +119,13 @@ def run(config: SensitivityConfig, **sweep: Any) -> pd.DataFrame:
 
     Every distinct run of every variant goes into one sweep (one pool of workers, each run once); the rows
     of each variant are then read back from the sweep's cache."""
-    for variant in config.variants:
-        variant_protocol(config, variant)[0].pretrain(config.domains, sweep.get("cache_dir"))
+    # Every variant's model of every domain, built side by side before the runs.
+    models = [
+        PretrainCell(domain, variant_protocol(config, variant)[0].data)
+        for variant in config.variants
+        for domain in config.domains
+    ]
+    pretrain_models(models, **sweep)
     runs = {variant: cells(config, variant) for variant in config.variants}
     distinct = list(dict.fromkeys(run for variant_runs in runs.values() for run in variant_runs))
     run_sweep(run_si, distinct, desc="SI sensitivity", **sweep)

@@ -4,15 +4,19 @@ The pretrained model, never updated, is OSI; every fine-tuning run starts from a
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from hipref.envs.task import random_estimate
 from hipref.experiments.domains import domain_spec
 from hipref.learners.sysid import PRETRAIN_LOSSES, PretrainConfig, SIModel, pretrain
 from hipref.numerics import one_thread
-from hipref.sweep import CacheDir, Expect, cached_artefact
+from hipref.results import tidy_rows
+from hipref.sweep import NO_CACHE, CacheDir, Expect, cached_artefact, run_sweep
 from hipref.validation import check_choice, check_int, check_range
 
 
@@ -107,3 +111,29 @@ def pretrained_model(domain: str, data: PretrainData, cache_dir: CacheDir = None
     return cached_artefact(
         f"si_osi_{domain}", (domain, dataclasses.asdict(data)), build, cache_dir=cache_dir, expect=SIModel
     )
+
+
+@dataclass(frozen=True)
+class PretrainCell:
+    """Algorithm 4 for one domain as a sweep cell, so that the domains' models are built side by side."""
+
+    domain: str
+    """'wiping' or 'pushing'."""
+    data: PretrainData
+    """The dataset and pretraining of the model."""
+
+
+def pretrain_cell(cell: PretrainCell) -> pd.DataFrame:
+    """Build and cache `cell.domain`'s OSI model (`pretrained_model`); no rows: the model is the product."""
+    pretrained_model(cell.domain, cell.data)
+    return tidy_rows([], domain=cell.domain, method="osi", noise=0.0, seed=cell.data.seed)
+
+
+def pretrain_models(cells: Iterable[PretrainCell], cache_dir: CacheDir = None, **sweep: Any) -> None:
+    """Build the OSI model of every cell before a study's runs, side by side (a sweep of `pretrain_cell`,
+    `sweep` its options), cached in `cache_dir` (None: the default directory): the study's workers then
+    load them, not race to build them. Without a cache each process builds its own, so nothing is built
+    here."""
+    if cache_dir is NO_CACHE:
+        return
+    run_sweep(pretrain_cell, list(dict.fromkeys(cells)), cache_dir=cache_dir, desc="Algorithm 4", **sweep)
