@@ -6,6 +6,10 @@ PY := $(VENV)/bin/python
 PROFILE ?= full
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9][0-9]_*.ipynb))
 export PYDEVD_DISABLE_FILE_VALIDATION := 1
+# numpy and OpenBLAS compute with their AVX2 kernels on every CPU, so rows do not depend on whether the
+# machine has AVX-512 (hipref/numerics.py; torch and MKL are pinned by the package itself).
+export NPY_DISABLE_CPU_FEATURES := X86_V4 AVX512_ICL AVX512_SPR
+export OPENBLAS_CORETYPE := Haswell
 
 # Only the full profile regenerates the committed results/; any other writes to results/<profile>/, which
 # git ignores.

@@ -18,13 +18,16 @@ between two machines of the same kind.
 Measured not to change a row, so left alone: MuJoCo (compiled for AVX, with no dispatch at run time), the
 numba controllers (no fastmath, so no fused multiply-add and no reordering, whatever CPU they are compiled
 for), oneDNN (not on the study's path) and numpy as the study uses it (sums, 3 x 3 products). numpy does
-dispatch elsewhere: its float64 exp and log have AVX-512 versions that differ in the last bit (tabular
-COACH's softmax takes exp: an action sampled from it changes only if a uniform draw falls inside that
-bit), and its OpenBLAS runs AVX-512 kernels for larger products and solves. Both read their setting when
-numpy is loaded, which a notebook does before it imports hipref, so they are not pinned here: pinned in
-the sweep's workers only, a run would differ between a pool and the notebook's own process.
-tests/test_cross_cpu.py computes its reference with them at AVX2 too, so a row of its cells that comes to
-depend on them is caught.
+dispatch elsewhere: its float64 sin, cos, exp and log have AVX-512 versions that differ in the last bit,
+and its OpenBLAS runs AVX-512 kernels for larger products and solves. One such bit in the direction of a
+push moved where a few pushes came to rest by one control period, and with it the slice SI was evaluated
+on: 30 of the 10,020 values of notebooks 02 and 03 computed on an AVX-512 machine differed from this
+study's. So the package takes sines and cosines from `math` (the C library's, not dispatched), and the
+Makefile pins numpy and OpenBLAS to their AVX2 kernels for every process it starts
+(`NPY_DISABLE_CPU_FEATURES`, `OPENBLAS_CORETYPE`): both read their setting when numpy is loaded, which a
+notebook does before it imports hipref, so they cannot be pinned here (pinned in the sweep's workers only,
+a run would differ between a pool and the notebook's own process). tests/test_cross_cpu.py computes its
+reference with them at AVX2 too, so a row of its cells that comes to depend on them is caught.
 
 Pinned, the torch parts cost more CPU time: Algorithm 4's pretraining (3000 Adam steps), built once per
 domain and cached, takes about 10 s instead of 6 s; a learning run, dominated by the physics, the same.

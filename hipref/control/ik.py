@@ -30,7 +30,7 @@ DAMPING = 1e-4
 
 def tool_down_rotation(yaw: float) -> np.ndarray:
     """World orientation of the tool pointing straight down (its z axis along -z), turned by `yaw`."""
-    c, s = np.cos(yaw), np.sin(yaw)
+    c, s = math.cos(yaw), math.sin(yaw)
     # Columns: tool x, y, z axes in the world frame.
     return np.array([[c, s, 0.0], [s, -c, 0.0], [0.0, 0.0, -1.0]])
 

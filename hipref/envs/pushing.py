@@ -276,7 +276,7 @@ class PushingTask:
         for _ in range(cfg.layout_attempts):
             start = rng.uniform(low, high)
             angle = rng.uniform(-np.pi, np.pi)
-            u = np.array([np.cos(angle), np.sin(angle)])
+            u = np.array([math.cos(angle), math.sin(angle)])
             goal = start + rng.uniform(*cfg.push_distance) * u
             if not (np.all(goal >= low) and np.all(goal <= high)):
                 continue

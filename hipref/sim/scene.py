@@ -4,6 +4,7 @@ the unknown parameters (desk height, cube mass) are then set on the compiled mod
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -62,7 +63,7 @@ def build_spec(config: SceneConfig, *, with_cube: bool) -> mujoco.MjSpec:
     base = spec.body("base")
     base.pos = list(config.base_pos)
     # The base faces +y, towards the desk.
-    base.quat = [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)]
+    base.quat = [math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)]
     for body in [base, *base.find_all(mujoco.mjtObj.mjOBJ_BODY)]:
         body.gravcomp = config.gravity_compensation
 
