@@ -76,3 +76,4 @@ bench: install
 	$(PY) -m hipref.bench.sweep
 	$(PY) -m hipref.bench.clips
 	$(PY) -m hipref.bench.teach
+	$(PY) -m hipref.bench.startup

@@ -53,8 +53,9 @@ def _control_sources_digest() -> str:
 
 
 class CompiledCache(caching._CacheLocator):
-    """Where numba caches the compiled controllers: `__pycache__/numba-<digest>` beside this module, or,
-    where that is not writable, `~/.cache/hipref/numba-<digest>` (or `$NUMBA_CACHE_DIR/...`).
+    """Where numba caches the compiled controllers: `$NUMBA_CACHE_DIR/numba-<digest>` if that is set (as
+    numba's own locators do), else `__pycache__/numba-<digest>` beside this module, or, where that is not
+    writable, `~/.cache/hipref/numba-<digest>`.
 
     numba's own locators stamp a cached function with its own source file only, so a kernel cached before
     an edit of a subroutine it calls from another module would be loaded stale. Here the stamp is the digest
@@ -80,8 +81,9 @@ class CompiledCache(caching._CacheLocator):
     def from_function(cls, py_func: object, py_file: str) -> CompiledCache | None:
         if Path(py_file).resolve().parent != CONTROL:
             return None
-        user = Path(os.environ.get("NUMBA_CACHE_DIR") or Path.home() / ".cache" / "hipref")
-        for directory in (CONTROL / "__pycache__", user):
+        chosen = os.environ.get("NUMBA_CACHE_DIR")
+        defaults = [CONTROL / "__pycache__", Path.home() / ".cache" / "hipref"]
+        for directory in [Path(chosen)] if chosen else defaults:
             locator = cls(py_func, directory)
             try:
                 locator.ensure_cache_path()
