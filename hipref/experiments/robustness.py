@@ -5,9 +5,12 @@ Every learner of one environment (truth, seed) meets the same teacher draws, the
 the same evaluation episodes as plain PESI (`hipref.experiments.si_run`), so each is compared with PESI as
 a paired difference at the last evaluation (`hipref.verdicts`). The paper's flip teacher ('mistake') flips
 at `noise`; the other teachers' errors come from their own model, whose defaults make about as many wrong
-answers on uniformly drawn pairs (`TeacherModel`). Beside the runs, `teacher_noise` measures, for every
+answers on uniformly drawn pairs (`TeacherModel`). Beside the runs, `run_teacher_noise` measures, for every
 teacher and environment, the true share of wrong answers among the labelled ones and the maximum marginal
 likelihood estimate of the flip rate on the same preferences (what the estimated-rate learners see).
+
+The config's defaults are the quick profile (three teachers, four learners, one environment per domain: a
+smoke test whose intervals are single points); the full profile crosses every teacher with every learner.
 """
 
 from __future__ import annotations
@@ -27,13 +30,13 @@ from hipref.learners.noise_rate import likelihood_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.robust import buffer_preferences
 from hipref.numerics import one_thread
-from hipref.results import tidy_rows
+from hipref.results import METRICS, tidy_rows
 from hipref.seeds import integer_seed
 from hipref.sweep import run_sweep
 from hipref.teachers.models import TEACHER_KINDS, TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_int, check_range
-from hipref.verdicts import Difference, better, combine, paired_difference
+from hipref.verdicts import Difference, better, bootstrap_mean, combine, paired_difference, within
 
 BASELINE = "pesi"
 """Every learner is compared with plain PESI (Eq. 2) under the same teacher."""
@@ -51,6 +54,26 @@ LEARNERS: tuple[str, ...] = (
 TEACHERS: tuple[str, ...] = ("mistake", "stochastic", "skip", "equal", "myopic", "distance")
 """The teachers of the matrix: the paper's flip and the other models, each with its default parameters."""
 
+QUICK_TEACHERS: tuple[str, ...] = ("mistake", "stochastic", "distance")
+"""The quick profile's teachers: wrong answers of three kinds (uniform flips, Bradley-Terry's on nearly equal
+pairs, confusion of pairs hard to tell apart), about as many of each."""
+
+QUICK_LEARNERS: tuple[str, ...] = ("pesi", "pesi_unbiased", "pesi_small_loss", "co_pesi_likelihood")
+"""The quick profile's learners: PESI, a robust loss, a one-network filter and co-teaching."""
+
+ROW_METRICS: tuple[str, ...] = (*METRICS, "unlabelled_share")
+"""The metrics of the study's rows: the results contract's, and the teachers' share of unlabelled answers."""
+
+ROUNDING = 1e-6
+"""SI computes in float32 (relative resolution 1.2e-7): two runs whose updates differ only in the order of
+a sum, such as a filter that forgets nothing and PESI, end with estimates a few units of the last place
+apart. A difference below this fraction of the parameter's largest value is that rounding and reads as zero
+(`final_difference`; `hipref.verdicts` reads only float64 rounding, 1e-9 of the data, as zero)."""
+
+NOISE_TOLERANCE = 0.05
+"""How near a teacher's true share of wrong answers the estimated flip rate must be to recover it: the
+claims' tolerance on the bias (estimate - true), a quarter of the paper's middle noise level."""
+
 
 @dataclass(frozen=True)
 class RobustnessConfig(Protocol):
@@ -58,10 +81,11 @@ class RobustnessConfig(Protocol):
 
     domains: tuple[str, ...] = ("wiping", "pushing")
     """Domains to run: 'wiping' (desk height) and 'pushing' (cube mass)."""
-    teachers: tuple[str, ...] = TEACHERS
-    """Teacher models (`hipref.teachers.models.TEACHER_KINDS`)."""
-    methods: tuple[str, ...] = LEARNERS
-    """Learners; must include the baseline 'pesi'."""
+    teachers: tuple[str, ...] = QUICK_TEACHERS
+    """Teacher models (`hipref.teachers.models.TEACHER_KINDS`); full profile: all of TEACHERS."""
+    methods: tuple[str, ...] = QUICK_LEARNERS
+    """Learners (`hipref.experiments.si_run.METHODS`); must include the baseline 'pesi'. Full profile: all of
+    LEARNERS."""
     noise: float = 0.2
     """The flip rate of the 'mistake' teacher (the paper's middle level); the other teachers flip nothing
     on top of their own errors."""
@@ -71,7 +95,8 @@ class RobustnessConfig(Protocol):
     masses: tuple[float, ...] = (11.0,)
     """True cube masses in kg of the pushing environments, each in [8, 20]."""
     eval_every: int = 66
-    """Learning episodes between evaluations: one evaluation before learning and one at the end."""
+    """Learning episodes between evaluations (section 5: 33). By default equal to `episodes`: one evaluation
+    before learning and one at the end, the only one the verdicts use."""
     eval_episodes: int = 5
     """Evaluation episodes per evaluation (section 5: 10)."""
 
@@ -207,28 +232,40 @@ def noise_cells(config: RobustnessConfig) -> list[TeacherNoiseCell]:
     ]
 
 
+def run_cell(cell: SIRun | TeacherNoiseCell) -> pd.DataFrame:
+    """One cell of the study's sweep: an SI run (`run_si`) or a teacher's noise (`run_teacher_noise`)."""
+    if isinstance(cell, TeacherNoiseCell):
+        return run_teacher_noise(cell)
+    return run_si(cell)
+
+
 def run(config: RobustnessConfig, **sweep: Any) -> pd.DataFrame:
     """Tidy rows of every run (`run_si`, with filter precision and recall where a learner filters) and of
     every teacher's noise (`run_teacher_noise`, method 'teacher'); a `teacher` column names the model."""
-    config.pretrain(config.domains, sweep.get("cache_dir"))
-    runs = run_sweep(run_si, cells(config), desc="teachers x learners", **sweep)
-    noise = run_sweep(run_teacher_noise, noise_cells(config), desc="teacher noise", **sweep)
-    if "teacher" not in runs.columns:
-        runs["teacher"] = "mistake"
-    # The paper's teacher leaves its rows as every other study's (no teacher column): name it here.
-    runs["teacher"] = runs["teacher"].fillna("mistake")
-    return pd.concat([runs, noise], ignore_index=True)
+    config.pretrain(config.domains, **sweep)
+    # One sweep, the noise cells last: each replays the clips that its environment's runs execute first, and
+    # takes a tenth of a second in a worker already started (seconds of imports in a fresh process).
+    rows = run_sweep(
+        run_cell, [*cells(config), *noise_cells(config)], desc="teachers x learners, teacher noise", **sweep
+    )
+    # The paper's teacher leaves its runs' rows as every other study's (no teacher column): name it here.
+    rows["teacher"] = rows["teacher"].fillna("mistake")
+    return rows
 
 
 def final_difference(
     rows: pd.DataFrame, domain: str, teacher: str, method: str, metric: str, *, resamples: int = 5000
 ) -> Difference:
     """`method` minus PESI on `metric` at the last evaluation under `teacher` in `domain`, paired over the
-    environments (`hipref.verdicts.paired_difference`)."""
+    environments (`hipref.verdicts.paired_difference`); a mean or bound within float32 rounding of zero
+    (`ROUNDING`) is 0.0."""
     at = rows[(rows["domain"] == domain) & (rows["teacher"] == teacher)]
     if at.empty:
         raise ValueError(f"no rows for domain={domain!r} and teacher={teacher!r}")
-    return paired_difference(at, metric=metric, method=method, baseline=BASELINE, resamples=resamples)
+    d = paired_difference(at, metric=metric, method=method, baseline=BASELINE, resamples=resamples)
+    floor = ROUNDING * domain_spec(domain).candidates.high
+    mean, low, high = (0.0 if abs(value) <= floor else value for value in (d.mean, d.low, d.high))
+    return Difference(mean, low, high, d.n)
 
 
 def difference_table(rows: pd.DataFrame, *, resamples: int = 5000) -> pd.DataFrame:
@@ -277,3 +314,63 @@ def best_learner(table: pd.DataFrame, domain: str, teacher: str) -> tuple[str, s
         f"[{success_d.low:+.2f}, {success_d.high:+.2f}]"
     )
     return method, held, text
+
+
+def noise_table(rows: pd.DataFrame, *, resamples: int = 5000) -> pd.DataFrame:
+    """Per domain and teacher, the means over the environments of the teacher's true_noise,
+    estimated_noise and unlabelled_share (`run_teacher_noise` rows, method 'teacher'), and the bias
+    estimated - true paired per environment with its 95% bootstrap interval (`bootstrap_mean`), over the
+    environments where the teacher labelled at least one answer. `recovered`: the verdict of `within` the
+    bias and +-NOISE_TOLERANCE. A domain and teacher without a labelled answer has no row.
+    Columns: domain, teacher, true_noise, estimated_noise, unlabelled_share, bias, bias_low, bias_high, n,
+    recovered."""
+    teacher_rows = rows[rows["method"] == "teacher"]
+    columns = ["domain", "teacher", "true_noise", "estimated_noise", "unlabelled_share"]
+    columns += ["bias", "bias_low", "bias_high", "n", "recovered"]
+    out = []
+    for (domain, teacher), group in teacher_rows.groupby(["domain", "teacher"], sort=False):
+        wide = group.pivot_table(index=["ground_truth", "seed"], columns="metric", values="value")
+        if not {"true_noise", "estimated_noise"} <= set(wide.columns):
+            continue
+        labelled = wide.dropna(subset=["true_noise", "estimated_noise"])
+        if labelled.empty:
+            continue
+        bias = bootstrap_mean(labelled["estimated_noise"] - labelled["true_noise"], resamples=resamples)
+        out.append(
+            dict(
+                domain=domain,
+                teacher=teacher,
+                true_noise=labelled["true_noise"].mean(),
+                estimated_noise=labelled["estimated_noise"].mean(),
+                unlabelled_share=wide["unlabelled_share"].mean() if "unlabelled_share" in wide else np.nan,
+                bias=bias.mean,
+                bias_low=bias.low,
+                bias_high=bias.high,
+                n=bias.n,
+                recovered=within(bias, -NOISE_TOLERANCE, NOISE_TOLERANCE),
+            )
+        )
+    return pd.DataFrame(out, columns=columns)
+
+
+def filter_quality(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per domain, teacher and filtering learner, the filter's precision and recall at the last evaluation
+    (over all learning), means over the environments, beside `chance`: the teacher's mean true share of
+    wrong answers in the domain, the precision of a filter that forgets at random. Columns: domain,
+    teacher, method, filter_precision, filter_recall, chance."""
+    runs = rows[rows["method"] != "teacher"]
+    last = runs[runs["episode"] == runs.groupby(["domain", "teacher", "method"])["episode"].transform("max")]
+    quality = last[last["metric"].isin(["filter_precision", "filter_recall"])]
+    columns = ["domain", "teacher", "method", "filter_precision", "filter_recall", "chance"]
+    if quality.empty:
+        return pd.DataFrame(columns=columns)
+    table = quality.pivot_table(
+        index=["domain", "teacher", "method"], columns="metric", values="value", sort=False
+    ).reset_index()
+    for metric in ("filter_precision", "filter_recall"):
+        if metric not in table:
+            table[metric] = np.nan
+    truth = rows[(rows["method"] == "teacher") & (rows["metric"] == "true_noise")]
+    chance = truth.groupby(["domain", "teacher"])["value"].mean().rename("chance")
+    table = table.join(chance, on=["domain", "teacher"])
+    return table[columns]
