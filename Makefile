@@ -41,7 +41,7 @@ install: $(VENV)/.installed
 
 $(VENV)/.installed: environment.txt pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --requirement environment.txt
+	$(PY) -m pip install --quiet --no-compile --requirement environment.txt
 	$(PY) -m pip install --quiet --no-deps --editable .
 	$(PY) -m ipykernel install --sys-prefix --name hipref --display-name "Python (hipref)" >/dev/null
 	touch $@
@@ -64,8 +64,10 @@ lint: install
 pytest: install
 	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto tests
 
+# Two notebooks at a time, each in its own kernel (a notebook's cells stay in order on one worker): their
+# kernels start, import and plot while the other's sweep computes.
 nbval: install
-	$(TEMP_RESULTS) $(VENV)/bin/pytest --nbval-lax $(NOTEBOOKS) \
+	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=2 --dist=loadfile --nbval-lax $(NOTEBOOKS) \
 		--nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
 
 lab: install
