@@ -24,16 +24,25 @@ endif
 TEMP_RESULTS = tmp=$$(mktemp -d -t hipref-results.XXXXXX) && trap 'rm -rf "$$tmp"' EXIT && \
 	trap 'exit 130' INT TERM && HIPREF_RESULTS_DIR=$$tmp
 
-# $(call execute,PROFILE,RESULTS DIR,OUTPUT DIR): run every notebook through papermill with the profile's
-# parameters, its results written to RESULTS DIR and the executed notebook to OUTPUT DIR.
+# $(call execute,PROFILE,RESULTS DIR,OUTPUT DIR,JOBS): run every notebook through papermill with the
+# profile's parameters, JOBS at a time, its results written to RESULTS DIR and the executed notebook to OUTPUT
+# DIR; the first failure stops the rest.
 define execute
 	mkdir -p $(3)
-	for nb in $(NOTEBOOKS); do \
-		name=$$(basename $$nb .ipynb); \
+	printf '%s\n' $(NOTEBOOKS) | xargs -P $(4) -I NOTEBOOK sh -c '\
+		name=$$(basename NOTEBOOK .ipynb); \
 		HIPREF_RESULTS_DIR=$(abspath $(2)) $(VENV)/bin/papermill --kernel hipref --cwd notebooks \
-			-f params/$(1)/$$name.yaml $$nb $(3)/$$name.ipynb || exit 1; \
-	done
+			-f params/$(1)/$$name.yaml NOTEBOOK $(3)/$$name.ipynb || exit 255'
 endef
+
+# Notebooks at a time. The quick profile's are short and spend much of their time starting kernels and
+# workers, so two run side by side (as nbval runs them); the full profile's run in order, each reusing the
+# learning clips and evaluation episodes the ones before it built rather than building them at the same time.
+ifeq ($(PROFILE),full)
+JOBS := 1
+else
+JOBS := 2
+endif
 
 .PHONY: install reproduce notebooks test lint pytest nbval lab bench
 
@@ -41,18 +50,18 @@ install: $(VENV)/.installed
 
 $(VENV)/.installed: environment.txt pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --no-compile --requirement environment.txt
+	$(PY) -m pip install --quiet --requirement environment.txt
 	$(PY) -m pip install --quiet --no-deps --editable .
 	$(PY) -m ipykernel install --sys-prefix --name hipref --display-name "Python (hipref)" >/dev/null
 	touch $@
 
 # Execute every notebook with the chosen profile's parameters, in order, into $(RESULTS)/notebooks/.
 reproduce: install
-	$(call execute,$(PROFILE),$(RESULTS),$(RESULTS)/notebooks)
+	$(call execute,$(PROFILE),$(RESULTS),$(RESULTS)/notebooks,$(JOBS))
 
 # Re-execute the committed notebooks in place at the quick profile (what nbval checks); results to results/quick/.
 notebooks: install
-	$(call execute,quick,results/quick,notebooks)
+	$(call execute,quick,results/quick,notebooks,2)
 
 # In this order; `make nbval NOTEBOOKS=notebooks/06_noise_estimation.ipynb` checks a single notebook.
 test: lint pytest nbval

@@ -17,7 +17,13 @@ from hipref.experiments import si_run
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.r2_noise import R2Config
-from hipref.experiments.si_pretraining import PretrainData, collect_dataset, pretrained_model
+from hipref.experiments.si_pretraining import (
+    PretrainCell,
+    PretrainData,
+    collect_dataset,
+    pretrain_models,
+    pretrained_model,
+)
 from hipref.experiments.si_run import EvaluationSpec, FineTuning, SIRun, evaluation_episodes, run_si
 
 TINY = PretrainData(n_trajectories=24, trajectory_steps=40, pretrain_steps=400)
@@ -154,3 +160,18 @@ def test_a_run_with_fewer_episodes_reads_the_start_of_a_longer_ones_clips_and_ch
     sweep._ARTEFACTS.clear()
     monkeypatch.setenv("HIPREF_CACHE_DIR", str(Path(os.environ["HIPREF_CACHE_DIR"]) / "fresh"))
     pd.testing.assert_frame_equal(replayed, run_si(short))
+
+
+def test_pretraining_builds_each_domains_model_once_in_the_cache_the_runs_read(tmp_path):
+    small = PretrainData(n_trajectories=3, trajectory_steps=10, pretrain_steps=5)
+    cells = [PretrainCell("wiping", small), PretrainCell("pushing", small), PretrainCell("wiping", small)]
+    pretrain_models(cells, sweep.NO_CACHE)
+    assert not (tmp_path / "artefacts").exists(), "without a cache nothing is built ahead"
+    pretrain_models(cells, tmp_path, workers=1)
+    models = sorted(path.name.split("-")[0] for path in (tmp_path / "artefacts").glob("si_osi_*.pkl"))
+    assert models == ["si_osi_pushing", "si_osi_wiping"]
+    # A run then loads the model from the cache rather than building it again.
+    stored = {path: path.stat().st_mtime_ns for path in (tmp_path / "artefacts").glob("si_osi_*.pkl")}
+    sweep.forget_artefacts()
+    pretrained_model("wiping", small, tmp_path)
+    assert {path: path.stat().st_mtime_ns for path in stored} == stored
