@@ -55,7 +55,7 @@ $(VENV)/.installed: environment.txt pyproject.toml
 	$(PY) -m ipykernel install --sys-prefix --name hipref --display-name "Python (hipref)" >/dev/null
 	touch $@
 
-# Execute every notebook with the chosen profile's parameters, in order, into $(RESULTS)/notebooks/.
+# Execute every notebook with the chosen profile's parameters (JOBS at a time) into $(RESULTS)/notebooks/.
 reproduce: install
 	$(call execute,$(PROFILE),$(RESULTS),$(RESULTS)/notebooks,$(JOBS))
 
