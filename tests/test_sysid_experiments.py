@@ -13,7 +13,7 @@ import pytest
 from hipref import sweep
 from hipref.envs.task import Clip
 from hipref.envs.wiping import WipingTask
-from hipref.experiments import si_run
+from hipref.experiments import si_pretraining, si_run
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.r2_noise import R2Config
@@ -162,11 +162,16 @@ def test_a_run_with_fewer_episodes_reads_the_start_of_a_longer_ones_clips_and_ch
     pd.testing.assert_frame_equal(replayed, run_si(short))
 
 
-def test_pretraining_builds_each_domains_model_once_in_the_cache_the_runs_read(tmp_path):
+def test_pretraining_builds_each_domains_model_once_in_the_cache_the_runs_read(tmp_path, monkeypatch):
     small = PretrainData(n_trajectories=3, trajectory_steps=10, pretrain_steps=5)
     cells = [PretrainCell("wiping", small), PretrainCell("pushing", small), PretrainCell("wiping", small)]
-    pretrain_models(cells, sweep.NO_CACHE)
-    assert not (tmp_path / "artefacts").exists(), "without a cache nothing is built ahead"
+    with monkeypatch.context() as patched:
+        built: list[str] = []
+        patched.setattr(si_pretraining, "pretrained_model", lambda domain, *args, **kw: built.append(domain))
+        pretrain_models(cells, sweep.NO_CACHE, workers=1)
+        assert built == [], "without a cache each process builds its own, so nothing is built ahead"
+        pretrain_models(cells, tmp_path / "probe", workers=1)
+        assert sorted(built) == ["pushing", "wiping"], "one build per distinct cell"
     pretrain_models(cells, tmp_path, workers=1)
     models = sorted(path.name.split("-")[0] for path in (tmp_path / "artefacts").glob("si_osi_*.pkl"))
     assert models == ["si_osi_pushing", "si_osi_wiping"]
