@@ -42,8 +42,11 @@ METRICS: tuple[str, ...] = (
     "true_noise",
     "filter_precision",
     "filter_recall",
+    "imitation_mse",
+    "goal_distance",
 )
 """The metric names a results frame may use; a study that measures something new adds it here."""
+
 
 def tidy_rows(
     rows: Iterable[Sequence[object]],

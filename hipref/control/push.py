@@ -147,6 +147,28 @@ def _cube_at_rest(physics: Physics, plan: PushPlan) -> bool:
     return math.sqrt(cube_speed) < plan.rest_speed
 
 
+@subroutine
+def _record_period(
+    physics: Physics,
+    spd: SPD,
+    plan: PushPlan,
+    period_force: np.ndarray,
+    executed: np.ndarray,
+    row: np.ndarray,
+    cube_xy: np.ndarray,
+) -> None:
+    """At the end of a control period: its features to `row` (the wrist force summed in `period_force`
+    averaged over the period, as ToolController reports it, and `period_force` cleared), the cube's place
+    to `cube_xy`."""
+    for r in range(3):
+        period_force[r] /= plan.substeps
+    write_features(physics, spd.dof, period_force, executed, row)
+    for r in range(3):
+        period_force[r] = 0.0
+    cube_xy[0] = physics.qpos[plan.cube_qpos]
+    cube_xy[1] = physics.qpos[plan.cube_qpos + 1]
+
+
 @kernel
 def execute_push(
     physics: Physics,
@@ -155,18 +177,24 @@ def execute_push(
     sensor: WristSensor,
     law: AdmittanceLaw,
     plan: PushPlan,
+    perturbation: np.ndarray,
     q_ref: np.ndarray,
     force: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The whole push: the force-tracking admittance law, the brake, and the wait for the cube to come to
     rest. The force loop closes through a stiff contact, so the admittance law, the IK target and step and
     SPD act at every physics step. `q_ref` and `force` are the controller's joint reference and wrist force,
-    updated at every step. Returns the per-period features (periods, 21) and cube positions (periods, 2)."""
+    updated at every step; SPD tracks q_ref plus the period's row of `perturbation` (its last row once the
+    push outlasts it; zeros but in Algorithm 3's perturbed demonstrations), and the features record that.
+    Returns the per-period features (periods, 21), cube positions (periods, 2) and tool tip positions
+    (periods, 3)."""
     h, substeps = spd.dt, plan.substeps
     capacity = (plan.push_steps + plan.settle_steps) // substeps + 2
     features = np.empty((capacity, FEATURES_PER_PERIOD))
     cube_xy = np.empty((capacity, 2))
+    tool_pos = np.empty((capacity, 3))
     shift, target_pos, target_rot, reading = np.empty(6), np.empty(3), np.empty((3, 3)), np.empty(3)
+    executed = np.empty(q_ref.shape[0])
     period_force = np.zeros(3)
     offset, rate = 0.0, 0.0  # Eq. 7's state along the push
     along, speed = 0.0, 0.0  # the reference x_d and its speed
@@ -182,7 +210,10 @@ def execute_push(
         tool_jacobian(ik, physics)
         _push_target(ik.jac, plan, along, speed, force, shift, target_pos, target_rot)
         ik_step(ik, physics, target_pos, target_rot, q_ref)
-        spd_physics_step(spd, physics, q_ref)
+        row = min(periods, perturbation.shape[0] - 1)
+        for k in range(executed.shape[0]):
+            executed[k] = q_ref[k] + perturbation[row, k]
+        spd_physics_step(spd, physics, executed)
         for r in range(3):
             reading[r] = physics.sensordata[sensor.adr + r]
         wrist_force(physics, sensor, reading, force)
@@ -193,16 +224,11 @@ def execute_push(
             continue
         # The end of a control period: record its features.
         if periods == features.shape[0]:
-            features, cube_xy = _grown(features), _grown(cube_xy)
-        # The wrist force averaged over the period, as ToolController reports it.
+            features, cube_xy, tool_pos = _grown(features), _grown(cube_xy), _grown(tool_pos)
+        _record_period(physics, spd, plan, period_force, executed, features[periods], cube_xy[periods])
         for r in range(3):
-            period_force[r] /= substeps
-        write_features(physics, spd.dof, period_force, q_ref, features[periods])
-        for r in range(3):
-            period_force[r] = 0.0
-        cube_xy[periods, 0] = physics.qpos[plan.cube_qpos]
-        cube_xy[periods, 1] = physics.qpos[plan.cube_qpos + 1]
+            tool_pos[periods, r] = physics.site_xpos[ik.site, r]
         periods += 1
         if phase == _SETTLE and _cube_at_rest(physics, plan):
             break
-    return features[:periods].copy(), cube_xy[:periods].copy()
+    return features[:periods].copy(), cube_xy[:periods].copy(), tool_pos[:periods].copy()

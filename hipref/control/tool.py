@@ -4,7 +4,9 @@
 law (or, for the ablation, nothing) turns the target into the compliant reference x_d, one IK step turns
 x_d into the joint reference, and SPD computes the joint torques at every physics step of the period.
 `ToolController.track` does the same for a sequence of targets, one period each, and records what the
-system-identification model sees. Both are one compiled call (`track`), MuJoCo's steps included."""
+system-identification model sees. Both are one compiled call (`track`), MuJoCo's steps included.
+`ToolController.hold` is the period of a learned pi^l (Algorithm 3), which gives the joint reference
+itself: SPD tracks it, so physics and the torque law are those of the analytic stack."""
 
 from __future__ import annotations
 
@@ -99,20 +101,22 @@ def track(
     substeps: int,
     targets: np.ndarray,
     target_rot: np.ndarray,
+    perturbation: np.ndarray,
     admittance: np.ndarray,
     q_ref: np.ndarray,
     force: np.ndarray,
     features: np.ndarray,
-    tool_xy: np.ndarray,
+    tool_pos: np.ndarray,
 ) -> None:
     """One control period of Fig. 6 towards each Cartesian target in turn (tool-tip positions, one row per
     period, all with the tool orientation `target_rot`), each followed by `substeps` physics steps of SPD.
 
     `admittance` holds Eq. 7's state along z (x_d - x_0, x_d' - x_0'), `q_ref` the joint reference and
-    `force` the wrist force of the last period, all updated. After each period, its features (see
-    `write_features`) go to the row of `features` and the tool tip's position on the desk plane to that
-    of `tool_xy`."""
-    reference, sensed = np.empty(3), np.empty(3)
+    `force` the wrist force of the last period, all updated. SPD tracks q_ref plus the period's row of
+    `perturbation` (zeros but in Algorithm 3's perturbed demonstrations). After each period, its features
+    (see `write_features`, the reference as tracked) go to the row of `features` and the tool tip's
+    position to that of `tool_pos`."""
+    reference, sensed, executed = np.empty(3), np.empty(3), np.empty(q_ref.shape[0])
     for period in range(targets.shape[0]):
         for r in range(3):
             reference[r] = targets[period, r]
@@ -125,19 +129,59 @@ def track(
         # One IK step from the kinematics of the last physics step.
         tool_jacobian(ik, physics)
         ik_step(ik, physics, reference, target_rot, q_ref)
+        for k in range(executed.shape[0]):
+            executed[k] = q_ref[k] + perturbation[period, k]
+        spd_period(
+            physics, spd, ik, sensor, substeps, executed, sensed, force, features[period], tool_pos[period]
+        )
+
+
+@subroutine
+def spd_period(
+    physics: Physics,
+    spd: SPD,
+    ik: IK,
+    sensor: WristSensor,
+    substeps: int,
+    q_ref: np.ndarray,
+    sensed: np.ndarray,
+    force: np.ndarray,
+    row: np.ndarray,
+    tool_pos: np.ndarray,
+) -> None:
+    """`substeps` physics steps of SPD towards `q_ref`; then the wrist force averaged over them to `force`,
+    the period's features to `row` and the tool tip's position to `tool_pos` (`sensed` is scratch)."""
+    for r in range(3):
+        sensed[r] = 0.0
+    for _ in range(substeps):
+        spd_physics_step(spd, physics, q_ref)
         for r in range(3):
-            sensed[r] = 0.0
-        for _ in range(substeps):
-            spd_physics_step(spd, physics, q_ref)
-            for r in range(3):
-                sensed[r] += physics.sensordata[sensor.adr + r]
-        # The wrist force over the period, averaged as a sensor's anti-aliasing filter does.
-        for r in range(3):
-            sensed[r] /= substeps
-        wrist_force(physics, sensor, sensed, force)
-        write_features(physics, spd.dof, force, q_ref, features[period])
-        tool_xy[period, 0] = physics.site_xpos[ik.site, 0]
-        tool_xy[period, 1] = physics.site_xpos[ik.site, 1]
+            sensed[r] += physics.sensordata[sensor.adr + r]
+    # The wrist force over the period, averaged as a sensor's anti-aliasing filter does.
+    for r in range(3):
+        sensed[r] /= substeps
+    wrist_force(physics, sensor, sensed, force)
+    write_features(physics, spd.dof, force, q_ref, row)
+    for r in range(3):
+        tool_pos[r] = physics.site_xpos[ik.site, r]
+
+
+@kernel
+def hold(
+    physics: Physics,
+    spd: SPD,
+    ik: IK,
+    sensor: WristSensor,
+    substeps: int,
+    q_ref: np.ndarray,
+    force: np.ndarray,
+    row: np.ndarray,
+    tool_pos: np.ndarray,
+) -> None:
+    """One control period of SPD towards the joint reference `q_ref` as given (a learned pi^l's q-bar):
+    `force`, the period's features `row` and the tool tip's position `tool_pos` are written as `track`
+    writes them."""
+    spd_period(physics, spd, ik, sensor, substeps, q_ref, np.empty(3), force, row, tool_pos)
 
 
 class ToolController:
@@ -163,7 +207,8 @@ class ToolController:
         self._target = np.zeros((1, 3))
         self._rotation = np.zeros((3, 3))
         self._features = np.zeros((1, FEATURES_PER_PERIOD))
-        self._tool_xy = np.zeros((1, 2))
+        self._tool_pos = np.zeros((1, 3))
+        self._no_perturbation = np.zeros((1, 6))
 
     def reset(self) -> None:
         """Hold the current pose; call after the state was set and mj_forward run."""
@@ -171,25 +216,65 @@ class ToolController:
         self.admittance[:] = 0.0
         self.force[:] = self.scene.wrist_force_world()
 
-    def track(self, targets: np.ndarray, target_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def track(
+        self, targets: np.ndarray, target_rot: np.ndarray, perturbation: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """One control period towards each tool-tip position of `targets` (periods, 3) in turn, the tool
-        oriented as `target_rot`. Returns, per period, the features (joint positions (6), joint velocities
-        (6), wrist force (3), joint reference (6)) and the tool tip's position on the desk plane (2)."""
+        oriented as `target_rot`, SPD tracking the reference plus the period's row of `perturbation`
+        (periods, 6), if given. Returns, per period, the features (joint positions (6), joint velocities
+        (6), wrist force (3), joint reference as tracked (6)) and the tool tip's position (3)."""
         targets = np.array(targets, dtype=float, order="C")
         if targets.ndim != 2 or targets.shape[1] != 3:
             raise ValueError(f"targets must be (periods, 3), got shape {targets.shape}")
+        if perturbation is None:
+            perturbation = np.zeros((len(targets), 6))
+        elif perturbation.shape != (len(targets), 6):
+            raise ValueError(f"perturbation must be ({len(targets)}, 6), got shape {perturbation.shape}")
         features = np.empty((len(targets), FEATURES_PER_PERIOD))
-        tool_xy = np.empty((len(targets), 2))
-        self._track(targets, target_rot, features, tool_xy)
-        return features, tool_xy
+        tool_pos = np.empty((len(targets), 3))
+        self._track(targets, target_rot, np.ascontiguousarray(perturbation, dtype=float), features, tool_pos)
+        return features, tool_pos
 
     def run(self, target_pos: np.ndarray, target_rot: np.ndarray) -> None:
         """One control period towards the Cartesian target (tool-tip position, tool orientation)."""
         self._target[0] = target_pos
-        self._track(self._target, target_rot, self._features, self._tool_xy)
+        self._track(self._target, target_rot, self._no_perturbation, self._features, self._tool_pos)
+
+    def hold(self, q_bar: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One control period of SPD towards the joint reference `q_bar` (6) as given, no admittance or IK
+        (a learned pi^l's output). Returns the period's features (21) and the tool tip's position (3)."""
+        self.q_ref[:] = q_bar
+        features, tool_pos = np.empty(FEATURES_PER_PERIOD), np.empty(3)
+        hold(
+            self.physics,
+            self.spd,
+            self.ik.ik,
+            self.sensor,
+            int(self.substeps),
+            self.q_ref,
+            self.force,
+            features,
+            tool_pos,
+        )
+        self.scene.check_stable()
+        return features, tool_pos
+
+    def observation(self) -> np.ndarray:
+        """The features of the current state (21), laid out as a period's (`write_features`)."""
+        d, scene = self.scene.data, self.scene
+        return np.concatenate([d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof], self.force, self.q_ref])
+
+    def tool_position(self) -> np.ndarray:
+        """The tool tip's position now (3), as `track` and `hold` record it after a period."""
+        return self.scene.data.site_xpos[self.ik.ik.site].copy()
 
     def _track(
-        self, targets: np.ndarray, target_rot: np.ndarray, features: np.ndarray, tool_xy: np.ndarray
+        self,
+        targets: np.ndarray,
+        target_rot: np.ndarray,
+        perturbation: np.ndarray,
+        features: np.ndarray,
+        tool_pos: np.ndarray,
     ) -> None:
         self._rotation[:] = target_rot
         track(
@@ -202,10 +287,11 @@ class ToolController:
             int(self.substeps),
             targets,
             self._rotation,
+            perturbation,
             self.admittance,
             self.q_ref,
             self.force,
             features,
-            tool_xy,
+            tool_pos,
         )
         self.scene.check_stable()

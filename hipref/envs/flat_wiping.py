@@ -90,8 +90,8 @@ def apply_action(
         y = min(max(y + step_y, grid.area_y[0]), grid.area_y[1])
         targets[k, :2] = x, y
     ref[:2] = x, y
-    features, tool_xy = task.controller.track(targets, task.rotation)  # the whole chunk in one kernel call
-    return tool_xy, features[:, FORCE_Z].copy()
+    features, tool_pos = task.controller.track(targets, task.rotation)  # the whole chunk in one kernel call
+    return tool_pos[:, :2], features[:, FORCE_Z].copy()
 
 
 def chunks_per_cell(task: WipingTask, grid: WipingGrid, chunk_periods: int) -> int:

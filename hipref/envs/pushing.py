@@ -20,7 +20,11 @@ cube's acceleration, about 10 % of the planned a = 2 m/s^2.
 The force acts on the cube through real contact: the paddle, tilted so that only its lower edge touches
 the cube low on its face (a cube pushed high tips and rocks), is held by SPD (Eq. 5-6) at the reference
 given by inverse kinematics; the controller knows the robot model and the friction coefficient, never
-the cube's mass."""
+the cube's mass.
+
+Given a learned pi^l (`low_level`), a push is the policy's: each control period it turns the state, the
+cube's goal and start and the mass estimate into the joint reference SPD tracks (`hipref.envs.low_level`),
+until the cube comes to rest after the planned push."""
 
 from __future__ import annotations
 
@@ -35,6 +39,15 @@ from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.push import PushPlan, execute_push
 from hipref.control.tool import ARM_POSITIONS, ControllerConfig, ToolController
+from hipref.envs.low_level import (
+    Demonstration,
+    JointReferencePolicy,
+    Perturb,
+    demonstration,
+    execute_policy,
+    initial_state,
+    no_perturbation,
+)
 from hipref.envs.task import Layout, Rollout, evenly_spaced
 from hipref.sim.config import SceneConfig
 from hipref.sim.render import clip_frames, watching_camera
@@ -149,8 +162,15 @@ def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
 class PushingTask:
     """The pushing world with its goal-conditioned low-level policy; physics built once per instance."""
 
-    def __init__(self, config: PushingConfig | None = None) -> None:
+    goal_size = 4
+    """A learned pi^l's goal: the cube's goal (x, y) and its start (x, y) on the desk."""
+
+    def __init__(
+        self, config: PushingConfig | None = None, *, low_level: JointReferencePolicy | None = None
+    ) -> None:
         self.config = config or PushingConfig()
+        self.low_level = low_level
+        """The learned pi^l rollouts execute; None: the analytic force-controlled push."""
         self.scene: Scene = make_scene(self.config.scene, with_cube=True)
         self.scene.set_desk_height(self.config.desk_height)
         # Plain SPD on the IK reference: the push direction's admittance is run by `push` itself.
@@ -178,6 +198,11 @@ class PushingTask:
     # --- the Task interface (hipref.envs.task) ---------------------------------------------------------
 
     @property
+    def control_period(self) -> float:
+        """Seconds between two of pi^l's joint references."""
+        return self.config.scene.control_period
+
+    @property
     def parameter_range(self) -> tuple[float, float]:
         """The cube masses in kg the task accepts (and SI's candidates cover)."""
         return self.config.mass_range
@@ -197,6 +222,27 @@ class PushingTask:
         self.reset(true_parameter, start, goal)
         push = self.push(estimate)
         return Rollout(push.features, bool(push.success))
+
+    def demonstrate(
+        self, true_parameter: float, layout: Layout, perturb: Perturb = no_perturbation
+    ) -> Demonstration:
+        """The expert P (the force-controlled push planned with the true mass) executing the layout's push,
+        as a learned pi^l is taught it (Algorithm 3, line 6), SPD tracking P's reference plus `perturb`'s."""
+        start, goal = layout
+        self.reset(true_parameter, start, goal)
+        first = initial_state(self.controller)
+        perturbation = perturb(self._longest_push(true_parameter))
+        features, _, tool_pos = self._expert_push(true_parameter, perturbation)
+        period = self.control_period
+        points = np.broadcast_to(self._goal_points(), (len(features), 2, 2))
+        return demonstration(first, features, tool_pos, points, true_parameter, period, perturbation)
+
+    def _longest_push(self, mass_estimate: float) -> int:
+        """Control periods a push planned with `mass_estimate` lasts at most, settling included (a learned
+        pi^l's is cut there; the analytic one's only brake can outlast it, by a few periods)."""
+        cfg = self.config
+        period = self.control_period
+        return math.ceil(self.plan(mass_estimate)[1] / period) + math.ceil(cfg.settle_time / period) + 2
 
     def clip_frames(
         self, true_parameter: float, estimate: float, layout: Layout, frames: int = 40
@@ -333,13 +379,54 @@ class PushingTask:
     def _cube_xy(self) -> np.ndarray:
         return self.scene.data.qpos[self.scene.cube_qpos : self.scene.cube_qpos + 2].copy()
 
+    def _goal_points(self) -> np.ndarray:
+        """A learned pi^l's goal: the cube's goal and start (2, 2)."""
+        return np.stack([self.goal, self.start])
+
     def push(self, mass_estimate: float) -> Push:
         """Push the cube towards the goal with a force planned from `mass_estimate`, then brake and wait
-        for the cube to stop; features are recorded once per control period. The whole push, with its
-        control at every physics step, is one compiled call (`_push`)."""
+        for the cube to stop; features are recorded once per control period. The analytic push, with its
+        control at every physics step, is one compiled call (`execute_push`); a learned pi^l acts once per
+        control period until the cube rests after the planned push's duration."""
+        mass_estimate = check_parameter("mass estimate", mass_estimate, self.config.mass_range)
+        if self.low_level is None:
+            features, cube_xy, _ = self._expert_push(mass_estimate, no_perturbation(1))
+        else:
+            features, cube_xy = self._learned_push(self.low_level, mass_estimate)
+        self.scene.check_stable()
+        final_error = float(np.linalg.norm(self._cube_xy() - self.goal))
+        success = final_error <= self.config.scene.goal_tolerance
+        return Push(features, cube_xy, final_error, success)
+
+    def _learned_push(
+        self, policy: JointReferencePolicy, mass_estimate: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The push executed by the learned `policy` given `mass_estimate`: at most as many periods as the
+        analytic push may take, ended at the first period after the planned push's duration with the cube
+        at rest. Returns the features and the cube's positions per period."""
+        cfg, scene = self.config, self.scene
+        period = self.control_period
+        pushing = math.ceil(self.plan(mass_estimate)[1] / period)
+        capacity = self._longest_push(mass_estimate)
+        cube_xy = np.empty((capacity, 2))
+        dof = scene.cube_dof
+
+        def at_rest(p: int) -> bool:
+            cube_xy[p] = self._cube_xy()
+            return p >= pushing and float(np.linalg.norm(scene.data.qvel[dof : dof + 6])) < cfg.rest_speed
+
+        points = np.broadcast_to(self._goal_points(), (capacity, 2, 2))
+        features, _ = execute_policy(self.controller, policy, points, mass_estimate, period, done=at_rest)
+        return features, cube_xy[: len(features)].copy()
+
+    def _expert_push(
+        self, mass_estimate: float, perturbation: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The analytic push planned with `mass_estimate`, SPD tracking its reference plus `perturbation`'s
+        row of each control period: per period, the features, the cube's positions and the tool tip's
+        positions."""
         cfg, scene = self.config, self.scene
         controller = self.controller
-        mass_estimate = check_parameter("mass estimate", mass_estimate, cfg.mass_range)
         force, duration = self.plan(mass_estimate)
         h = cfg.scene.timestep
         plan = PushPlan(
@@ -357,17 +444,14 @@ class PushingTask:
             cube_qpos=int(scene.cube_qpos),
             cube_dof=int(scene.cube_dof),
         )
-        features, cube_xy = execute_push(
+        return execute_push(
             controller.physics,
             controller.spd,
             controller.ik.ik,
             controller.sensor,
             cfg.push_admittance.law(h),
             plan,
+            np.ascontiguousarray(perturbation, dtype=float),
             controller.q_ref,
             controller.force,
         )
-        scene.check_stable()
-        final_error = float(np.linalg.norm(self._cube_xy() - self.goal))
-        success = final_error <= cfg.scene.goal_tolerance
-        return Push(features, cube_xy, final_error, success)

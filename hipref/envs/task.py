@@ -1,8 +1,9 @@
 """What a study needs of a world whose one physical parameter phi is unknown, whichever the world.
 
 Both tasks (`hipref.envs.wiping.WipingTask`, `hipref.envs.pushing.PushingTask`) implement `Task`: the range
-of phi, a random layout of an episode, and a rollout of the goal-conditioned low-level policy pi^l given an
-estimate of phi in a world whose phi is the truth. What SI sees of a rollout, a slice tau of h control
+of phi, a random layout of an episode, a rollout of the goal-conditioned low-level policy pi^l (analytic or
+learned, `hipref.envs.low_level`) given an estimate of phi in a world whose phi is the truth, and the
+analytic pi^l's demonstrations a learned one imitates. What SI sees of a rollout, a slice tau of h control
 periods (`clip`, `probe_slice`), is built here on that interface alone.
 """
 
@@ -11,6 +12,8 @@ from __future__ import annotations
 from typing import NamedTuple, Protocol
 
 import numpy as np
+
+from hipref.envs.low_level import Demonstration, Perturb
 
 Layout = tuple[np.ndarray, np.ndarray]
 """An episode's layout on the desk: the stroke's start and goal (wiping), the cube's start and goal
@@ -56,6 +59,21 @@ class Task(Protocol):
     ) -> list[np.ndarray] | None:
         """The clip of `rollout` as `frames` images evenly spaced over it (`hipref.sim.render`), seen from
         where the effect of a wrong estimate shows; None where no GL is."""
+        ...
+
+    @property
+    def control_period(self) -> float:
+        """Seconds between two of pi^l's joint references."""
+        ...
+
+    @property
+    def goal_size(self) -> int:
+        """Values of the goal g a learned pi^l is conditioned on (`hipref.envs.low_level`)."""
+        ...
+
+    def demonstrate(self, true_parameter: float, layout: Layout, perturb: Perturb) -> Demonstration:
+        """The analytic pi^l, told the true parameter, executing the layout: Algorithm 3's expert P, SPD
+        tracking its reference plus `perturb`'s."""
         ...
 
 

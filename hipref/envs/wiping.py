@@ -3,7 +3,9 @@
 `WipingTask` is the physical task with its goal-conditioned low-level policy pi^l: `stroke` drives the
 sponge to a goal on the desk using an *estimate* of the desk height (never the simulator's value),
 through admittance + IK + SPD. A stroke succeeds when the sponge reaches its goal with the contact force
-inside the safe band for most of the way, which needs a good height estimate."""
+inside the safe band for most of the way, which needs a good height estimate. Given a learned pi^l
+(`low_level`), a rollout follows the same reference path, the policy turning each of its points, the goal
+of one control period, into the joint reference (`hipref.envs.low_level`)."""
 
 from __future__ import annotations
 
@@ -17,6 +19,15 @@ import numpy as np
 from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.tool import ARM_POSITIONS, FORCE_Z, ControllerConfig, ToolController
+from hipref.envs.low_level import (
+    Demonstration,
+    JointReferencePolicy,
+    Perturb,
+    demonstration,
+    execute_policy,
+    initial_state,
+    no_perturbation,
+)
 from hipref.envs.task import Layout, Rollout, evenly_spaced
 from hipref.sim.config import SceneConfig
 from hipref.sim.render import clip_frames, watching_camera
@@ -117,8 +128,19 @@ def _check_goal(goal_xy: np.ndarray) -> np.ndarray:
 class WipingTask:
     """The wiping world with its goal-conditioned low-level policy; physics built once per instance."""
 
-    def __init__(self, config: WipingConfig | None = None, *, compliant: bool = True) -> None:
+    goal_size = 3
+    """A learned pi^l's goal: the next point of the stroke's reference path (approach included)."""
+
+    def __init__(
+        self,
+        config: WipingConfig | None = None,
+        *,
+        compliant: bool = True,
+        low_level: JointReferencePolicy | None = None,
+    ) -> None:
         self.config = config or WipingConfig()
+        self.low_level = low_level
+        """The learned pi^l rollouts execute; None: the analytic admittance + IK + SPD."""
         self.scene: Scene = make_scene(self.config.scene, with_cube=False)
         self.controller = ToolController(self.scene, self.config.controller, compliant=compliant)
         self.rotation = tool_down_rotation(0.0)
@@ -132,6 +154,11 @@ class WipingTask:
         return self.scene.desk_height
 
     # --- the Task interface (hipref.envs.task) ---------------------------------------------------------
+
+    @property
+    def control_period(self) -> float:
+        """Seconds between two of pi^l's joint references."""
+        return self.config.scene.control_period
 
     @property
     def parameter_range(self) -> tuple[float, float]:
@@ -160,8 +187,24 @@ class WipingTask:
         `true_parameter`; its first `periods` control periods only, if given."""
         start, goal = layout
         self.reset(true_parameter, (float(start[0]), float(start[1])))
-        stroke = self.stroke(goal, estimate, periods=periods)
+        stroke = self.execute(goal, estimate, periods=periods)
         return Rollout(stroke.features, bool(stroke.success))
+
+    def demonstrate(
+        self, true_parameter: float, layout: Layout, perturb: Perturb = no_perturbation
+    ) -> Demonstration:
+        """The expert P (admittance + IK + SPD, told the true height) executing the layout's stroke,
+        approach included, as a learned pi^l is taught it (Algorithm 3, line 6), SPD tracking P's
+        reference plus `perturb`'s."""
+        start, goal = layout
+        self.reset(true_parameter, (float(start[0]), float(start[1])))
+        first = initial_state(self.controller)
+        targets = self._path(_check_goal(goal), true_parameter, None)
+        perturbation = perturb(len(targets))
+        features, tool_pos = self.controller.track(targets, self.rotation, perturbation)
+        period = self.control_period
+        points = targets[:, None, :]
+        return demonstration(first, features, tool_pos, points, true_parameter, period, perturbation)
 
     def clip_frames(
         self, true_parameter: float, estimate: float, layout: Layout, frames: int = 40
@@ -179,10 +222,7 @@ class WipingTask:
 
     def observation(self) -> np.ndarray:
         """The features of the current state, laid out as each period's in `Stroke.features`."""
-        d, scene = self.scene.data, self.scene
-        return np.concatenate(
-            [d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof], self.controller.force, self.controller.q_ref]
-        )
+        return self.controller.observation()
 
     # --- the stroke --------------------------------------------------------------------------------------
 
@@ -215,24 +255,30 @@ class WipingTask:
 
     def approach(self, estimate: float) -> None:
         """Descend from hover to the estimated surface minus the press depth (fast, then at tool speed)."""
+        targets = self._approach_targets(estimate)
+        self.controller.track(targets, self.rotation)
+        self.reference[2] = targets[-1, 2]
+        self.in_contact_phase = True
+
+    def _approach_targets(self, estimate: float) -> np.ndarray:
+        """The approach's reference, one tool-tip position per control period, from the reference now."""
         cfg, scene_cfg = self.config, self.config.scene
         estimate = check_parameter("height estimate", estimate, self.config.height_range)
         dt = scene_cfg.control_period
         slow_from = estimate + cfg.approach_clearance
         bottom = estimate - cfg.press_depth
-        ref = self.reference
+        height = float(self.reference[2])
         heights: list[float] = []
-        while ref[2] > bottom + 1e-9:
-            speed = cfg.approach_speed if ref[2] > slow_from else scene_cfg.tool_speed
-            ref[2] = max(bottom, ref[2] - speed * dt)
-            heights.append(ref[2])
+        while height > bottom + 1e-9:
+            speed = cfg.approach_speed if height > slow_from else scene_cfg.tool_speed
+            height = max(bottom, height - speed * dt)
+            heights.append(height)
         # Let the admittance settle on the surface before moving.
-        heights += [ref[2]] * round(0.2 / dt)
+        heights += [height] * round(0.2 / dt)
         targets = np.empty((len(heights), 3))
-        targets[:, :2] = ref[:2]
+        targets[:, :2] = self.reference[:2]
         targets[:, 2] = heights
-        self.controller.track(targets, self.rotation)
-        self.in_contact_phase = True
+        return targets
 
     def _moving_periods(self, origin: np.ndarray, goal: np.ndarray) -> int:
         """Control periods the reference takes from `origin` to `goal` at the tool speed."""
@@ -253,25 +299,60 @@ class WipingTask:
 
         `periods` executes only the stroke's first `periods` control periods, bit for bit the same as the
         whole stroke's (what a trajectory slice needs); `reached` and `success` then describe that part."""
-        cfg = self.config
         if not self.in_contact_phase:
             self.approach(estimate)
-        estimate = check_parameter("height estimate", estimate, self.config.height_range)
         goal = _check_goal(goal_xy)
+        targets = self._stroke_targets(goal, estimate, periods)
+        features, tool_pos = self.controller.track(targets, self.rotation)
+        self.reference[:] = targets[-1]
+        return self._outcome(features, tool_pos[:, :2], goal)
+
+    def _stroke_targets(self, goal: np.ndarray, estimate: float, periods: int | None) -> np.ndarray:
+        """The stroke's reference from the reference now to `goal`, pressing at the estimated surface, one
+        tool-tip position per control period (its first `periods` only, if given)."""
+        estimate = check_parameter("height estimate", estimate, self.config.height_range)
         total = self.stroke_periods(goal)
         if periods is not None and not 1 <= periods <= total:
             raise ValueError(f"periods must be in [1, {total}] for this stroke, got {periods!r}")
         moving = self._moving_periods(self.reference[:2], goal)
-        ref = self.reference
-        ref[2] = estimate - cfg.press_depth
-        start = ref[:2].copy()
+        start = self.reference[:2].copy()
         # The reference moves at tool speed to the goal, then stays there while the sponge settles.
         fraction = np.minimum(1.0, np.arange(1, (periods or total) + 1) / moving)
         targets = np.empty((len(fraction), 3))
         targets[:, :2] = start + (goal - start) * fraction[:, None]
-        targets[:, 2] = ref[2]
-        features, tool_xy = self.controller.track(targets, self.rotation)
-        ref[:2] = targets[-1, :2]
+        targets[:, 2] = estimate - self.config.press_depth
+        return targets
+
+    def _path(self, goal: np.ndarray, estimate: float, periods: int | None) -> np.ndarray:
+        """From hover: the approach's reference, then the stroke's (its first `periods` only, if given)."""
+        approach = self._approach_targets(estimate)
+        return np.concatenate([approach, self._stroke_targets(goal, estimate, periods)])
+
+    def execute(self, goal_xy: np.ndarray, estimate: float, *, periods: int | None = None) -> Stroke:
+        """From hover (after `reset`): the approach and the stroke to `goal_xy`, executed by the task's pi^l
+        given `estimate` (the analytic `stroke`, or the learned `low_level`'s)."""
+        if self.low_level is None:
+            return self.stroke(goal_xy, estimate, periods=periods)
+        return self._learned_stroke(self.low_level, goal_xy, estimate, periods)
+
+    def _learned_stroke(
+        self, policy: JointReferencePolicy, goal_xy: np.ndarray, estimate: float, periods: int | None
+    ) -> Stroke:
+        """The stroke from hover, approach included, executed by the learned `policy` given `estimate`,
+        each control period's goal the reference path's next point; only the stroke's periods are kept."""
+        goal = _check_goal(goal_xy)
+        approach = len(self._approach_targets(estimate))
+        targets = self._path(goal, estimate, periods)
+        period = self.control_period
+        features, tool_pos = execute_policy(self.controller, policy, targets[:, None, :], estimate, period)
+        self.reference[:] = targets[-1]
+        self.in_contact_phase = True
+        return self._outcome(features[approach:], tool_pos[approach:, :2], goal)
+
+    def _outcome(self, features: np.ndarray, tool_xy: np.ndarray, goal: np.ndarray) -> Stroke:
+        """A stroke's success: the sponge ends within the reach tolerance of `goal`, the contact force in the
+        safe band for the required fraction of its periods."""
+        cfg = self.config
         force = features[:, FORCE_Z].copy()
         low, high = cfg.force_band
         in_band = float(np.mean((force >= low) & (force <= high)))

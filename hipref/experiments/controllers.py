@@ -139,7 +139,7 @@ def run_ablation_cell(cell: AblationCell) -> pd.DataFrame:
     )
 
 
-def _truth_and_estimate(
+def truth_and_estimate(
     rng: np.random.Generator, error: float, low: float, high: float
 ) -> tuple[float, float]:
     """A true parameter uniform over the part of [low, high] where truth + error stays inside, and that
@@ -151,10 +151,10 @@ def _truth_and_estimate(
 
 def run_curve_cell(cell: CurveCell) -> pd.DataFrame:
     """One episode whose estimate is off the true parameter by exactly `cell.error` (see
-    `_truth_and_estimate`: the truth is drawn only where that estimate is inside the range)."""
+    `truth_and_estimate`: the truth is drawn only where that estimate is inside the range)."""
     rng = np.random.default_rng(cell.seed)
     task = domain_spec(cell.domain).make_task()
-    truth, estimate = _truth_and_estimate(rng, cell.error, *task.parameter_range)
+    truth, estimate = truth_and_estimate(rng, cell.error, *task.parameter_range)
     success = task.rollout(truth, estimate, task.sample_layout(rng)).success
     return _rows(cell.domain, "admittance", cell.seed, {"success_rate": success}, estimate_error=cell.error)
 

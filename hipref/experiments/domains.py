@@ -29,8 +29,9 @@ class DomainSpec:
     """Preferences per SI update (Table 2: 16 for height, 32 for mass)."""
     refresh_frequency: int
     """f_refresh of the co-teaching classifiers (Table 2: 16 for height, 32 for mass)."""
-    make_task: Callable[[], Task]
-    """The domain's task, with its physics built afresh."""
+    make_task: Callable[..., Task]
+    """The domain's task, with its physics built afresh (its analytic pi^l unless given `low_level=`, a
+    learned one: `hipref.experiments.low_level.make_task`)."""
 
 
 DOMAINS: dict[str, DomainSpec] = {

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -13,6 +13,7 @@ import pandas as pd
 
 from hipref.envs.task import random_estimate
 from hipref.experiments.domains import domain_spec
+from hipref.experiments.low_level import LowLevel, make_task
 from hipref.learners.sysid import PRETRAIN_LOSSES, PretrainConfig, SIModel, pretrain
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
@@ -39,6 +40,8 @@ class PretrainData:
     distribution), 'expectation' (its mean only) or 'brier_expectation' (`hipref.learners.sysid.pretrain`)."""
     seed: int = 0
     """Seed of the collection and of the pretraining: one pretrained model per domain, shared by all runs."""
+    low_level: LowLevel = field(default_factory=LowLevel)
+    """The pi^l whose rollouts make D, and which every run that starts from this model executes."""
 
     def __post_init__(self) -> None:
         check_choice("loss", self.loss, PRETRAIN_LOSSES)
@@ -50,10 +53,15 @@ class PretrainData:
         check_int("seed", self.seed, 0)
 
     @property
-    def collection(self) -> tuple[int, int, int, int]:
+    def collection(self) -> tuple[Any, ...]:
         """What the dataset D depends on (not how SI is then trained on it), so pretraining variants share
         one collection."""
-        return (self.n_trajectories, self.trajectory_steps, self.history, self.seed)
+        return (self.n_trajectories, self.trajectory_steps, self.history, self.seed, self.low_level.key)
+
+    @property
+    def key(self) -> dict[str, Any]:
+        """What the pretrained model depends on: every field, of the low level only what rollouts do."""
+        return {**dataclasses.asdict(self), "low_level": self.low_level.key}
 
 
 def collect_dataset(domain: str, data: PretrainData) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +73,7 @@ def collect_dataset(domain: str, data: PretrainData) -> tuple[np.ndarray, np.nda
     both good and bad control. Returns (features (n, h * features per period), parameters (n,)).
     """
     spec = domain_spec(domain)
-    task = spec.make_task()
+    task = make_task(domain, data.low_level)
     rng = np.random.default_rng(np.random.SeedSequence([data.seed, 4]))
     features, parameters = [], []
     for _ in range(data.n_trajectories):
@@ -108,9 +116,7 @@ def pretrained_model(domain: str, data: PretrainData, cache_dir: CacheDir = None
             )
         return model
 
-    return cached_artefact(
-        f"si_osi_{domain}", (domain, dataclasses.asdict(data)), build, cache_dir=cache_dir, expect=SIModel
-    )
+    return cached_artefact(f"si_osi_{domain}", (domain, data.key), build, cache_dir=cache_dir, expect=SIModel)
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,7 @@ import pandas as pd
 
 from hipref.envs.task import Clip, Layout, Task, clip, probe_slice
 from hipref.experiments.domains import domain_spec
+from hipref.experiments.low_level import make_task
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.learners.coteaching import (
     CoPESIConfig,
@@ -247,6 +248,8 @@ class EvaluationSpec:
     eval_episodes: int
     slices: int
     history: int
+    low_level: tuple[Any, ...] = ("admittance",)
+    """The pi^l the probing rollouts execute (`LowLevel.key`)."""
 
 
 class Episode(NamedTuple):
@@ -293,6 +296,8 @@ class LearningSpec:
     """The run's seed; with the ground truth it seeds the learner's queries and the layouts."""
     n_candidates: int
     history: int
+    low_level: tuple[Any, ...] = ("admittance",)
+    """The pi^l the clips execute (`LowLevel.key`)."""
 
 
 def learning_clips(task: Task, spec: LearningSpec, episodes: int, model: SIModel) -> list[Clip]:
@@ -362,7 +367,7 @@ def run_si(cell: SIRun) -> pd.DataFrame:
     with one_thread():
         teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed, cell.ground_truth)
         truth = cell.ground_truth
-        task = domain_spec(cell.domain).make_task()
+        task = make_task(cell.domain, cell.data.low_level)
         phi = domain_spec(cell.domain).candidates
         teacher = ScriptedPreferenceTeacher(
             truth, cell.noise, np.random.default_rng(teacher_seq), cell.teacher, scale=phi.high - phi.low
@@ -371,11 +376,14 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         learn_rng = np.random.default_rng(learn_seq)
         h = cell.data.history
         n_checkpoints = cell.episodes // cell.eval_every + 1
-        spec = EvaluationSpec(cell.domain, truth, cell.seed, cell.eval_episodes, cell.eval_slices, h)
+        low_level = cell.data.low_level.key
+        spec = EvaluationSpec(
+            cell.domain, truth, cell.seed, cell.eval_episodes, cell.eval_slices, h, low_level
+        )
         checkpoints = evaluation_episodes(task, spec, n_checkpoints)
         clips = None
         if learner is not None and cell.fine_tuning.candidate_sampling == "uniform":
-            learning = LearningSpec(cell.domain, truth, cell.seed, cell.n_candidates, h)
+            learning = LearningSpec(cell.domain, truth, cell.seed, cell.n_candidates, h, low_level)
             clips = learning_clips(task, learning, cell.episodes, model)
         rows: list[tuple[int, str, float]] = []
         for episode in range(cell.episodes + 1):
@@ -405,4 +413,5 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         ground_truth=round(truth, 6),
         n_candidates=cell.n_candidates,
         **({} if cell.teacher == TeacherModel() else {"teacher": cell.teacher.name}),
+        **({} if low_level == ("admittance",) else {"low_level": cell.data.low_level.kind}),
     )

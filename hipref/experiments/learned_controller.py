@@ -1,0 +1,264 @@
+"""The learned low-level controller (notebook 10, paper A.3 / Algorithm 3).
+
+1. Training: pi^l learnt by imitation of the analytic admittance-on-SPD stack in each domain
+   (`hipref.experiments.low_level.learned_policy`); its MSE over updates (`imitation_mse`).
+2. Controllers: the learned pi^l against its expert on the same episodes (true parameter, layout), with
+   the true parameter and with estimates off it by the errors of notebook 05: success, and wiping's contact
+   force over the stroke (`force_mean`, `force_std`) or pushing's final distance of the cube to its goal
+   (`goal_distance`).
+3. SI on top: OSI and PESI (perfect preferences) on a grid of truths, executing either low level; each
+   low level's SI is pretrained (Algorithm 4) on its own rollouts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hipref.envs.pushing import PushingTask
+from hipref.envs.task import Task
+from hipref.envs.wiping import WipingTask
+from hipref.experiments.controllers import truth_and_estimate
+from hipref.experiments.domains import DOMAINS
+from hipref.experiments.low_level import LowLevel, learned_policy, make_task
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_pretraining import PretrainData, pretrained_model
+from hipref.experiments.si_run import SIRun, run_si
+from hipref.learners.imitation import ImitationConfig
+from hipref.numerics import one_thread
+from hipref.results import tidy_rows
+from hipref.seeds import child_seeds
+from hipref.sweep import run_sweep
+from hipref.validation import check_int, check_range
+
+SI_METHODS: tuple[str, ...] = ("osi", "pesi")
+"""The SI methods run on top of each low level."""
+ROW_METRICS: tuple[str, ...] = (
+    "imitation_mse",
+    "success_rate",
+    "force_mean",
+    "force_std",
+    "goal_distance",
+    "param_error",
+    "param_error_argmax",
+    "param_error_multislice",
+)
+"""The metrics of the study's rows."""
+CURVE_POINTS = 50
+"""Points of each training curve kept in the rows (the MSE averaged over as many equal runs of updates)."""
+
+
+@dataclass(frozen=True)
+class LearnedControllerConfig(Protocol):
+    """Parameters of notebook 10 (defaults: the quick profile). The SI fields are `Protocol`'s; the others
+    size Algorithm 3 (the paper gives no numbers for it) and the controllers' comparison."""
+
+    heights: tuple[float, ...] = (0.7,)
+    """True desk heights in m of the SI environments, each in [0.5, 0.9]."""
+    masses: tuple[float, ...] = (14.0,)
+    """True cube masses in kg of the SI environments, each in [8, 20]."""
+    episodes: int = 33
+    """Learning episodes per SI run, at least 1."""
+    eval_episodes: int = 5
+    """Evaluation episodes per SI evaluation (section 5: 10)."""
+    n_trajectories: int = 30
+    """Algorithm 4 trajectories, collected with each low level (A.7: 100)."""
+    pretrain_steps: int = 1000
+    """Adam steps of Algorithm 4."""
+    iterations: int = 60
+    """Algorithm 3's iterations: expert trajectories collected, one per iteration, per domain."""
+    updates_per_iteration: int = 25
+    """MSE updates of pi^l per collected trajectory."""
+    batch_size: int = 256
+    """N, rows per update."""
+    hidden: tuple[int, ...] = (256, 256)
+    """Widths of pi^l's hidden layers."""
+    imitation_learning_rate: float = 1e-3
+    """Adam step size of Algorithm 3."""
+    perturbation: float = 0.01
+    """Spread in rad of the perturbation of the expert's joint reference while it demonstrates (DART; 0:
+    Algorithm 3 read literally)."""
+    perturbation_time: float = 0.2
+    """Correlation time in s of that perturbation."""
+    height_errors: tuple[float, ...] = (-0.05, -0.02, 0.0, 0.02, 0.05)
+    """Errors in m of the desk-height estimate the controllers are compared at (notebook 05's claim: most
+    strokes fail at +-0.05)."""
+    mass_errors: tuple[float, ...] = (-4.0, -2.0, 0.0, 2.0, 4.0)
+    """Errors in kg of the cube-mass estimate the controllers are compared at (notebook 05's claim: most
+    pushes fail at +-4)."""
+    episodes_per_error: int = 4
+    """Episodes (truth, layout) per estimate error, each executed by both low levels."""
+    comparison_seed: int = 0
+    """Root seed of the comparison's episodes."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.imitation  # noqa: B018 - validates Algorithm 3's fields
+        for name, errors, domain in (
+            ("height_errors", self.height_errors, "wiping"),
+            ("mass_errors", self.mass_errors, "pushing"),
+        ):
+            candidates = DOMAINS[domain].candidates
+            bound = (candidates.high - candidates.low) / 2
+            if not errors:
+                raise ValueError(f"{name} must hold at least one error, got ()")
+            for error in errors:
+                check_range(name, error, -bound, bound)
+        check_int("episodes_per_error", self.episodes_per_error, 1)
+        check_int("comparison_seed", self.comparison_seed, 0)
+
+    @property
+    def imitation(self) -> ImitationConfig:
+        """Algorithm 3's config, the same in both domains."""
+        return ImitationConfig(
+            iterations=self.iterations,
+            updates_per_iteration=self.updates_per_iteration,
+            batch_size=self.batch_size,
+            hidden=tuple(self.hidden),
+            learning_rate=self.imitation_learning_rate,
+            perturbation=self.perturbation,
+            perturbation_time=self.perturbation_time,
+        )
+
+    def low_levels(self) -> tuple[LowLevel, LowLevel]:
+        """The analytic low level and the learned one."""
+        return LowLevel(), LowLevel("learned", self.imitation)
+
+
+@dataclass(frozen=True)
+class PreparationCell:
+    """What one domain's runs load: Algorithm 3's pi^l, then Algorithm 4's SI on each low level."""
+
+    domain: str
+    imitation: ImitationConfig
+    data: tuple[PretrainData, ...]
+    """Algorithm 4's data and pretraining per low level."""
+
+
+@dataclass(frozen=True)
+class ComparisonCell:
+    """Episodes executed by one low level with an estimate `error` off the true parameter."""
+
+    domain: str
+    low_level: LowLevel
+    error: float
+    seeds: tuple[int, ...]
+    """One episode per seed, its truth and layout drawn from it: the same for every low level."""
+
+
+def run_preparation_cell(cell: PreparationCell) -> pd.DataFrame:
+    """Train (or load) the domain's pi^l and pretrain SI on each low level, all cached; rows: the training
+    curve, the MSE averaged over CURVE_POINTS equal runs of updates, each row at the run's last update."""
+    losses = learned_policy(cell.domain, cell.imitation).losses
+    for data in cell.data:
+        pretrained_model(cell.domain, data)
+    chunks = np.array_split(np.arange(len(losses)), min(CURVE_POINTS, len(losses)))
+    rows = [(int(chunk[-1]) + 1, "imitation_mse", float(losses[chunk].mean())) for chunk in chunks]
+    return tidy_rows(rows, domain=cell.domain, method="learned", noise=0.0, seed=cell.imitation.seed)
+
+
+def _episode_metrics(task: Task, seed: int, error: float) -> tuple[float, dict[str, float]]:
+    """One episode (truth and layout from `seed`) executed with the estimate off the truth by `error`
+    (`truth_and_estimate`): its truth, and its success with wiping's contact force over the stroke or
+    pushing's final distance of the cube to its goal."""
+    rng = np.random.default_rng(seed)
+    truth, estimate = truth_and_estimate(rng, error, *task.parameter_range)
+    start, goal = task.sample_layout(rng)
+    if isinstance(task, WipingTask):
+        task.reset(truth, (float(start[0]), float(start[1])))
+        stroke = task.execute(goal, estimate)
+        return truth, {
+            "success_rate": stroke.success,
+            "force_mean": stroke.force.mean(),
+            "force_std": stroke.force.std(),
+        }
+    assert isinstance(task, PushingTask)
+    task.reset(truth, start, goal)
+    push = task.push(estimate)
+    return truth, {"success_rate": push.success, "goal_distance": push.final_error}
+
+
+def run_comparison_cell(cell: ComparisonCell) -> pd.DataFrame:
+    """The cell's episodes, each executed by its low level."""
+    frames = []
+    with one_thread():
+        task = make_task(cell.domain, cell.low_level)
+        for seed in cell.seeds:
+            truth, metrics = _episode_metrics(task, seed, cell.error)
+            frames.append(
+                tidy_rows(
+                    [(name, float(value)) for name, value in metrics.items()],
+                    ("metric", "value"),
+                    domain=cell.domain,
+                    method=cell.low_level.kind,
+                    noise=0.0,
+                    seed=seed,
+                    episode=0,
+                    estimate_error=cell.error,
+                    ground_truth=round(truth, 6),
+                )
+            )
+    return pd.concat(frames, ignore_index=True)
+
+
+def run_evaluation_cell(cell: ComparisonCell | SIRun) -> pd.DataFrame:
+    """A cell of the study's second sweep: a comparison of the low levels, or an SI run (`run_si`)."""
+    return run_si(cell) if isinstance(cell, SIRun) else run_comparison_cell(cell)
+
+
+def pretrain_data(config: LearnedControllerConfig) -> tuple[PretrainData, ...]:
+    """Algorithm 4's data and pretraining, per low level."""
+    return tuple(dataclasses.replace(config.data, low_level=low_level) for low_level in config.low_levels())
+
+
+def preparation_cells(config: LearnedControllerConfig) -> list[PreparationCell]:
+    return [PreparationCell(domain, config.imitation, pretrain_data(config)) for domain in DOMAINS]
+
+
+def comparison_cells(config: LearnedControllerConfig) -> list[ComparisonCell]:
+    """Every (domain, error) executed by both low levels on the same episodes."""
+    return [
+        ComparisonCell(
+            domain,
+            low_level,
+            float(error),
+            tuple(child_seeds([config.comparison_seed, label], config.episodes_per_error)),
+        )
+        for label, (domain, errors) in enumerate(
+            (("wiping", config.height_errors), ("pushing", config.mass_errors))
+        )
+        for error in errors
+        for low_level in config.low_levels()
+    ]
+
+
+def si_cells(config: LearnedControllerConfig) -> list[SIRun]:
+    """OSI and PESI (perfect preferences) in every environment of the grid, on each low level."""
+    cells = []
+    for low_level in config.low_levels():
+        for domain in DOMAINS:
+            for method in SI_METHODS:
+                for truth, seed in config.environments(domain):
+                    run = config.run_cell(domain, method, truth, seed)
+                    cells.append(
+                        dataclasses.replace(run, data=dataclasses.replace(run.data, low_level=low_level))
+                    )
+    return cells
+
+
+def run(config: LearnedControllerConfig, **sweep: Any) -> pd.DataFrame:
+    """The three parts, as one tidy frame: training curves, the controllers' comparison, SI on top.
+
+    Two sweeps: the domains' networks and SI models side by side, then every comparison and SI run, which
+    load them."""
+    training = run_sweep(run_preparation_cell, preparation_cells(config), desc="Algorithms 3 and 4", **sweep)
+    comparisons, runs = comparison_cells(config), si_cells(config)
+    evaluated = run_sweep(run_evaluation_cell, [*comparisons, *runs], desc="low levels and SI", **sweep)
+    si = evaluated[evaluated.method.isin(SI_METHODS)].copy()
+    # run_si names only a learned low level; here every SI row says which one it executed.
+    si["low_level"] = si["low_level"].fillna("admittance") if "low_level" in si else "admittance"
+    return pd.concat([training, evaluated[~evaluated.method.isin(SI_METHODS)], si], ignore_index=True)

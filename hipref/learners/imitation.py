@@ -1,0 +1,282 @@
+"""Algorithm 3 (A.3): a goal-conditioned low-level policy pi^l(q_bar | s, phi) learnt by imitation.
+
+The expert is the position-controlled system P (the analytic admittance + IK + SPD stack, told the true
+phi); pi^l is an MLP that maps the state s, the goal g and phi to the joint reference q_bar that SPD
+tracks. As in the paper, each iteration samples a goal and a parameter, collects one trajectory of P in a
+simulator set to that parameter, pushes it into a replay buffer R and updates pi^l by the MSE on a batch
+of N (state, goal, phi, q_bar) rows sampled from R.
+
+Covariate shift. A policy trained only on P's own states drifts off them and meets states it never saw:
+trained this way, pi^l lost the sponge's path by centimetres within a second. So, as in DART (Laskey et
+al., 2017), each demonstration is executed with P's reference perturbed by a smooth random offset (an
+Ornstein-Uhlenbeck process, `perturbation`), while the labels stay P's own references: R then holds the
+corrections P makes from states off its path. `perturbation=0` is Algorithm 3 read literally.
+
+What the network predicts is q_bar - q, the offset of the reference from the joints now (the first six
+values of s), each input and output standardised by its mean and spread over R's first trajectories
+(`ImitationConfig.normalise_after`): P's own step, q + J^+ e, is an offset of the same kind, so the
+network learns a bounded correction rather than the arm's configuration.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Protocol
+
+import numpy as np
+import torch
+from torch import nn
+
+from hipref.validation import check_int, check_range
+
+JOINTS = 6
+"""Joints of the arm: q_bar's size, and the first values of a state (the joint positions)."""
+
+
+class Trajectory(Protocol):
+    """A trajectory tau of P as Algorithm 3 stores it (`hipref.envs.low_level.Demonstration`)."""
+
+    @property
+    def states(self) -> np.ndarray: ...  # (periods, state size)
+    @property
+    def goals(self) -> np.ndarray: ...  # (periods, goal size)
+    @property
+    def phi(self) -> float: ...
+    @property
+    def references(self) -> np.ndarray: ...  # (periods, 6)
+
+
+@dataclass(frozen=True)
+class ImitationConfig:
+    """Algorithm 3's size and the network of pi^l (the paper gives neither; these are the study's)."""
+
+    iterations: int = 200
+    """Iterations of Algorithm 3: trajectories of P collected, one per iteration."""
+    updates_per_iteration: int = 10
+    """MSE updates of pi^l per collected trajectory (line 10, repeated)."""
+    batch_size: int = 256
+    """N, rows per update."""
+    hidden: tuple[int, ...] = (256, 256)
+    """Widths of the MLP's hidden layers (tanh)."""
+    learning_rate: float = 1e-3
+    """Adam step size."""
+    perturbation: float = 0.02
+    """Stationary spread in rad of the perturbation of each joint's reference in demonstrations (0: none)."""
+    perturbation_time: float = 0.2
+    """Correlation time in s of the perturbation: slow enough that the arm follows it off P's path."""
+    normalise_after: int = 10
+    """Trajectories in R from whose rows the inputs' and outputs' standardisation is measured; updates
+    begin once it is (earlier iterations only collect)."""
+    seed: int = 0
+    """Seed of the sampled goals and parameters, the batches and the network's initial weights."""
+
+    def __post_init__(self) -> None:
+        check_int("iterations", self.iterations, 1)
+        check_int("updates_per_iteration", self.updates_per_iteration, 1)
+        check_int("batch_size", self.batch_size, 1)
+        if not self.hidden:
+            raise ValueError("hidden must hold at least one layer width, got ()")
+        for width in self.hidden:
+            check_int("hidden", width, 1, 4096)
+        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
+        check_range("perturbation", self.perturbation, 0.0, 0.5)
+        check_range("perturbation_time", self.perturbation_time, 1e-3, 10.0)
+        check_int("normalise_after", self.normalise_after, 1, self.iterations)
+        check_int("seed", self.seed, 0)
+
+
+def perturbation(
+    rng: np.random.Generator, periods: int, spread: float, correlation_time: float, control_period: float
+) -> np.ndarray:
+    """(periods, 6): an Ornstein-Uhlenbeck offset of each joint's reference, from 0, of stationary spread
+    `spread` rad and correlation time `correlation_time` s, sampled once per control period."""
+    decay = np.exp(-control_period / correlation_time)
+    kicks = rng.normal(0.0, spread * np.sqrt(1.0 - decay**2), (periods, JOINTS))
+    offsets = np.empty((periods, JOINTS))
+    current = np.zeros(JOINTS)
+    for p in range(periods):
+        current = decay * current + kicks[p]
+        offsets[p] = current
+    return offsets
+
+
+class ReplayBuffer:
+    """R: every (state, goal, phi, q_bar) row of the trajectories pushed so far."""
+
+    def __init__(self, state_size: int, goal_size: int) -> None:
+        self.state_size, self.goal_size = state_size, goal_size
+        self._inputs: list[np.ndarray] = []
+        self._targets: list[np.ndarray] = []
+        self._rows = 0
+        self.trajectories = 0
+        """Trajectories pushed so far."""
+
+    def __len__(self) -> int:
+        return self._rows
+
+    def push(self, tau: Trajectory) -> None:
+        """Line 8: push tau's rows into R; a tau of other shapes than R's is refused."""
+        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size)
+        references = np.asarray(tau.references, dtype=float)
+        if references.shape != (len(inputs), JOINTS):
+            raise ValueError(f"references must be ({len(inputs)}, {JOINTS}), got shape {references.shape}")
+        self._inputs.append(inputs)
+        self._targets.append(references - inputs[:, :JOINTS])
+        self._rows += len(inputs)
+        self.trajectories += 1
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every row's input (state, goal, phi) and target (q_bar - q)."""
+        if len(self._inputs) > 1:
+            self._inputs = [np.concatenate(self._inputs)]
+            self._targets = [np.concatenate(self._targets)]
+        return self._inputs[0], self._targets[0]
+
+    def sample(self, rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """N rows drawn uniformly with replacement."""
+        inputs, targets = self.arrays()
+        rows = rng.integers(0, len(inputs), n)
+        return inputs[rows], targets[rows]
+
+
+def policy_inputs(
+    states: np.ndarray, goals: np.ndarray, phi: float, state_size: int, goal_size: int
+) -> np.ndarray:
+    """The network's input rows (state, goal, phi); states and goals of other shapes than pi^l's, or a phi
+    that is not one finite number, are refused before anything is computed."""
+    states, goals = np.asarray(states, dtype=float), np.asarray(goals, dtype=float)
+    if states.ndim != 2 or states.shape[1] != state_size:
+        raise ValueError(f"states must be (periods, {state_size}), got shape {states.shape}")
+    if goals.shape != (len(states), goal_size):
+        raise ValueError(f"goals must be ({len(states)}, {goal_size}), got shape {goals.shape}")
+    if np.ndim(phi) != 0 or not np.isfinite(phi):
+        raise ValueError(f"phi must be one finite number, got {phi!r}")
+    return np.concatenate([states, goals, np.full((len(states), 1), float(phi))], axis=1)
+
+
+class Standardisation(NamedTuple):
+    """Means and spreads of the network's inputs and outputs, measured on R's first trajectories."""
+
+    input_mean: np.ndarray
+    input_scale: np.ndarray
+    output_mean: np.ndarray
+    output_scale: np.ndarray
+
+
+def measure_standardisation(inputs: np.ndarray, targets: np.ndarray) -> Standardisation:
+    """Each column's mean and standard deviation (1 where a column does not vary, such as a constant
+    joint reference of a held pose)."""
+
+    def spread(x: np.ndarray) -> np.ndarray:
+        scale = x.std(axis=0)
+        return np.where(scale > 1e-8, scale, 1.0)
+
+    return Standardisation(inputs.mean(axis=0), spread(inputs), targets.mean(axis=0), spread(targets))
+
+
+def make_network(inputs: int, hidden: tuple[int, ...], seed: int) -> nn.Sequential:
+    """The MLP of pi^l: tanh hidden layers, a linear output of the 6 joints' (standardised) offsets."""
+    torch.manual_seed(seed)
+    layers: list[nn.Module] = []
+    width = inputs
+    for size in hidden:
+        layers += [nn.Linear(width, size), nn.Tanh()]
+        width = size
+    layers.append(nn.Linear(width, JOINTS))
+    return nn.Sequential(*layers).double()
+
+
+class LearnedLowLevelPolicy:
+    """pi^l(q_bar | s, phi) as the tasks execute it (`hipref.envs.low_level.JointReferencePolicy`): the
+    trained network's weights in float64 numpy arrays, so that a control period costs a few small
+    matrix products and no torch call."""
+
+    def __init__(self, network: nn.Sequential, scaling: Standardisation, state_size: int, goal_size: int):
+        self.state_size, self.goal_size = state_size, goal_size
+        self.scaling = scaling
+        linears = [m for m in network if isinstance(m, nn.Linear)]
+        self.weights = [m.weight.detach().numpy().copy() for m in linears]
+        self.biases = [m.bias.detach().numpy().copy() for m in linears]
+
+    def offsets(self, inputs: np.ndarray) -> np.ndarray:
+        """q_bar - q for input rows (rows, state + goal + 1)."""
+        s = self.scaling
+        x = (inputs - s.input_mean) / s.input_scale
+        for w, b in zip(self.weights[:-1], self.biases[:-1], strict=True):
+            x = np.tanh(x @ w.T + b)
+        x = x @ self.weights[-1].T + self.biases[-1]
+        return x * s.output_scale + s.output_mean
+
+    def __call__(self, state: np.ndarray, goal: np.ndarray, phi: float) -> np.ndarray:
+        """q_bar for one state s (state size), goal g (goal size) and phi."""
+        state, goal = np.asarray(state, dtype=float), np.asarray(goal, dtype=float)
+        inputs = policy_inputs(state[None], goal[None], phi, self.state_size, self.goal_size)
+        return inputs[0, :JOINTS] + self.offsets(inputs)[0]
+
+    def references(self, tau: Trajectory) -> np.ndarray:
+        """q_bar for each period of a trajectory's states (what it would give P's states)."""
+        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size)
+        return inputs[:, :JOINTS] + self.offsets(inputs)
+
+
+class ImitationResult(NamedTuple):
+    """Algorithm 3's product: the policy, and its training curve."""
+
+    policy: LearnedLowLevelPolicy
+    losses: np.ndarray
+    """(updates,): the MSE of each update's batch, in standardised units."""
+
+
+Collect = Callable[[Any, float, Callable[[int], np.ndarray]], Trajectory]
+"""`collect(goal, phi, perturb)`: set the simulator to phi and return P's trajectory under the goal, SPD
+tracking P's reference plus `perturb(periods)` (periods, 6)."""
+
+
+def learn_low_level_policy(
+    sample_goal_and_phi: Callable[[np.random.Generator], tuple[Any, float]],
+    collect: Collect,
+    state_size: int,
+    goal_size: int,
+    control_period: float,
+    config: ImitationConfig,
+) -> ImitationResult:
+    """Algorithm 3: pi^l learnt by imitation of P. `sample_goal_and_phi` draws a goal and a parameter;
+    `collect` executes P (its demonstrations perturbed as `config` says, `control_period` s apart)."""
+    rng = np.random.default_rng(np.random.SeedSequence([config.seed, 3]))
+    buffer = ReplayBuffer(state_size, goal_size)
+    network: nn.Sequential | None = None
+    optimiser: torch.optim.Optimizer | None = None
+    scaling: Standardisation | None = None
+    losses: list[float] = []
+    for _ in range(config.iterations):
+        # 2: randomly sample goal g and environmental parameter phi
+        goal, phi = sample_goal_and_phi(rng)
+        # 4-6: set the simulator with phi, collect trajectory tau using P under goal g
+        tau = collect(
+            goal,
+            phi,
+            lambda n: perturbation(rng, n, config.perturbation, config.perturbation_time, control_period),
+        )
+        # 8: push tau into R
+        buffer.push(tau)
+        if buffer.trajectories < config.normalise_after:
+            continue
+        if network is None:
+            scaling = measure_standardisation(*buffer.arrays())
+            network = make_network(state_size + goal_size + 1, config.hidden, config.seed)
+            optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
+        assert optimiser is not None and scaling is not None
+        # 10: update pi^l with the MSE loss on an N-sized batch sampled from R
+        for _ in range(config.updates_per_iteration):
+            inputs, targets = buffer.sample(rng, config.batch_size)
+            x = torch.from_numpy((inputs - scaling.input_mean) / scaling.input_scale)
+            y = torch.from_numpy((targets - scaling.output_mean) / scaling.output_scale)
+            loss = torch.mean((network(x) - y) ** 2)
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+            losses.append(float(loss.detach()))
+    assert network is not None and scaling is not None
+    policy = LearnedLowLevelPolicy(network, scaling, state_size, goal_size)
+    return ImitationResult(policy, np.array(losses))
