@@ -8,9 +8,11 @@ import pytest
 import torch
 
 
-@pytest.fixture
+@pytest.fixture(autouse=True)
 def single_thread() -> Iterator[None]:
-    """torch on one thread, as inside a run of the study; the caller's setting is restored afterwards."""
+    """Every test runs torch on one thread, as inside a run of the study: the tests run on every core at once,
+    and two threads per test made them wait on each other (a co-teaching test took 2 s alone and 30 s beside a
+    busy core). The caller's setting is restored afterwards."""
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     yield

@@ -26,11 +26,6 @@ from tests._clips import shown
 TRUE_HEIGHT = 0.7537
 
 
-@pytest.fixture(autouse=True)
-def _single_thread(single_thread: None) -> None:
-    """Every test here runs torch on one thread (tests/conftest.py)."""
-
-
 def _noisy_pairs(n: int, noise: float, seed: int) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
     """Random candidate pairs labelled by nearness to a fixed height; a known subset of labels flipped.
 

@@ -44,7 +44,7 @@ def stroke_demonstration() -> Demonstration:
 
 
 def test_a_policy_trained_on_a_fixed_expert_trajectory_reproduces_it(
-    stroke_demonstration: Demonstration, single_thread: None
+    stroke_demonstration: Demonstration,
 ) -> None:
     """Open loop: the expert's own states give back its references, to a small fraction of how far they
     move."""
@@ -54,7 +54,7 @@ def test_a_policy_trained_on_a_fixed_expert_trajectory_reproduces_it(
     assert np.abs(policy.references(tau) - tau.references).max() < 0.05 * spread
 
 
-def test_a_policy_taught_one_stroke_with_perturbed_demonstrations_retraces_it(single_thread: None) -> None:
+def test_a_policy_taught_one_stroke_with_perturbed_demonstrations_retraces_it() -> None:
     """Closed loop: taught one stroke (one goal, one height) from perturbed executions, the policy moves the
     sponge along the expert's path, from the same start (its contact force is not asked to match)."""
     teacher = WipingTask()

@@ -20,11 +20,6 @@ from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeache
 from tests._clips import shown
 
 
-@pytest.fixture(autouse=True)
-def _single_thread(single_thread: None) -> None:
-    """Every test here runs torch on one thread (tests/conftest.py)."""
-
-
 class LogitTable(nn.Module):
     """A model that is nothing but its logits, so a gradient step acts on the distribution directly."""
 

@@ -28,11 +28,6 @@ from tests._clips import shown
 FEATURES = np.array([0.3, -1.0, 2.0, 0.5])
 
 
-@pytest.fixture(autouse=True)
-def _single_thread(single_thread: None) -> None:
-    """Every test here runs torch on one thread (tests/conftest.py)."""
-
-
 def _pairs(seed: int, batch: int = 8) -> tuple[torch.Tensor, torch.Tensor]:
     generator = torch.Generator().manual_seed(seed)
     logits = torch.randn(batch, 2, generator=generator, requires_grad=True)

@@ -16,11 +16,6 @@ from hipref.learners.sysid import (
 )
 
 
-@pytest.fixture(autouse=True)
-def _single_thread(single_thread: None) -> None:
-    """Every test here runs torch on one thread (tests/conftest.py)."""
-
-
 def _synthetic_dataset(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Features whose projection on a hidden direction fixes the height, plus 1 cm of noise."""
     features = rng.normal(loc=3.0, scale=[1.0, 5.0, 0.1, 2.0, 1.0, 1.0], size=(n, 6))
