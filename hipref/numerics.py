@@ -29,6 +29,9 @@ notebook does before it imports hipref, so they cannot be pinned here (pinned in
 a run would differ between a pool and the notebook's own process). tests/test_cross_cpu.py computes its
 reference with them at AVX2 too, so a row of its cells that comes to depend on them is caught.
 
+One more path depends on the processor however the libraries are pinned: MKL's float32 square root, which
+torch's default Adam update calls; every Adam of the study runs fused instead (`adam`).
+
 Pinned, the torch parts cost more CPU time: Algorithm 4's pretraining (3000 Adam steps), built once per
 domain and cached, takes about 10 s instead of 6 s; a learning run, dominated by the physics, the same.
 
@@ -44,7 +47,11 @@ import contextlib
 import os
 import sys
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import torch
 
 PINNED: dict[str, str] = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "COMPATIBLE"}
 """The environment settings that make torch compute the same bits on every x86-64 CPU with AVX2."""
@@ -86,6 +93,19 @@ def one_thread() -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(before)
+
+
+def adam(parameters: Iterable[torch.nn.Parameter], learning_rate: float) -> torch.optim.Adam:
+    """Adam as every learner of the study runs it: its update in ATen's fused kernel (`fused=True`).
+
+    The default update takes Adam's square root through MKL's vector math, whose float32 square root is not
+    correctly rounded and, even in MKL's COMPATIBLE branch, rounds differently on different processors (it
+    refines an approximate reciprocal square root, which processor models compute differently): one last
+    bit per step grew, over Algorithm 4's 3000 steps, into a different pretrained SI and different rows on
+    an AVX-512 machine and an AVX2 one. The fused kernel takes the exact hardware square root."""
+    import torch
+
+    return torch.optim.Adam(parameters, lr=learning_rate, fused=True)
 
 
 pin_cpu_dispatch()

@@ -79,7 +79,7 @@ class LearnedControllerConfig(Protocol):
     """Widths of pi^l's hidden layers."""
     imitation_learning_rate: float = 1e-3
     """Adam step size of Algorithm 3."""
-    perturbation: float = 0.01
+    perturbation: float = 0.005
     """Spread in rad of the perturbation of the expert's joint reference while it demonstrates (DART; 0:
     Algorithm 3 read literally)."""
     perturbation_time: float = 0.2

@@ -25,6 +25,7 @@ from torch import nn
 from hipref.learners.noise_estimation import PreferenceSet, estimate_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
+from hipref.numerics import adam
 from hipref.seeds import integer_seed
 from hipref.validation import check_choice, check_int, check_range
 
@@ -202,7 +203,7 @@ class CoTeachingPair:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
             self.models = (_classifier(self.hidden_sizes), _classifier(self.hidden_sizes))
-        self.optimisers = tuple(torch.optim.Adam(m.parameters(), lr=self.learning_rate) for m in self.models)
+        self.optimisers = tuple(adam(m.parameters(), self.learning_rate) for m in self.models)
 
     @torch.no_grad()
     def losses(self, pairs: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -28,6 +28,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hipref.numerics import adam
 from hipref.validation import check_int, check_range
 
 JOINTS = 6
@@ -49,11 +50,12 @@ class Trajectory(Protocol):
 
 @dataclass(frozen=True)
 class ImitationConfig:
-    """Algorithm 3's size and the network of pi^l (the paper gives neither; these are the study's)."""
+    """Algorithm 3's size and the network of pi^l (the paper gives neither; the defaults are the study's full
+    profile, notebook 10)."""
 
-    iterations: int = 200
+    iterations: int = 600
     """Iterations of Algorithm 3: trajectories of P collected, one per iteration."""
-    updates_per_iteration: int = 10
+    updates_per_iteration: int = 25
     """MSE updates of pi^l per collected trajectory (line 10, repeated)."""
     batch_size: int = 256
     """N, rows per update."""
@@ -61,7 +63,7 @@ class ImitationConfig:
     """Widths of the MLP's hidden layers (tanh)."""
     learning_rate: float = 1e-3
     """Adam step size."""
-    perturbation: float = 0.02
+    perturbation: float = 0.005
     """Stationary spread in rad of the perturbation of each joint's reference in demonstrations (0: none)."""
     perturbation_time: float = 0.2
     """Correlation time in s of the perturbation: slow enough that the arm follows it off P's path."""
@@ -265,7 +267,7 @@ def learn_low_level_policy(
         if network is None:
             scaling = measure_standardisation(*buffer.arrays())
             network = make_network(state_size + goal_size + 1, config.hidden, config.seed)
-            optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
+            optimiser = adam(network.parameters(), config.learning_rate)
         assert optimiser is not None and scaling is not None
         # 10: update pi^l with the MSE loss on an N-sized batch sampled from R
         for _ in range(config.updates_per_iteration):

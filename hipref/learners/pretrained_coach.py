@@ -20,6 +20,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hipref.numerics import adam
 from hipref.teachers.feedback import FeedbackQuery, validate_feedback
 from hipref.validation import check_int, check_range
 
@@ -69,7 +70,7 @@ def behaviour_cloning(
     generator = torch.Generator().manual_seed(seed)
     torch.manual_seed(seed)
     policy = FlatPolicy(observations.shape[1], n_actions, config.hidden)
-    optimiser = torch.optim.Adam(policy.parameters(), lr=config.bc_learning_rate)
+    optimiser = adam(policy.parameters(), config.bc_learning_rate)
     s = torch.as_tensor(observations)
     a = torch.as_tensor(actions)
     for _ in range(config.bc_epochs):

@@ -14,6 +14,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hipref.numerics import adam
 from hipref.validation import check_choice, check_int, check_range
 
 
@@ -248,7 +249,7 @@ def pretrain(
     distribution_all = torch.as_tensor(
         target_distribution(model.candidates, parameters), dtype=torch.float32
     )
-    optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    optimiser = adam(model.parameters(), config.learning_rate)
     rng = np.random.default_rng(seed)
     batch_size = min(config.batch_size, len(features))
     losses = np.empty(config.n_steps)
