@@ -15,6 +15,7 @@ from hipref.learners.imitation import (
     ImitationConfig,
     ImitationResult,
     ReplayBuffer,
+    collect_demonstrations,
     learn_low_level_policy,
     perturbation,
 )
@@ -24,18 +25,11 @@ LAYOUT = (np.array([-0.05, 0.0]), np.array([0.03, 0.04]))
 
 
 def fit_one_trajectory(tau: Demonstration, goal_size: int, iterations: int, updates: int) -> ImitationResult:
-    """Algorithm 3 whose every sampled goal and parameter bring the same trajectory `tau`."""
-    result = learn_low_level_policy(
-        lambda rng: (None, tau.phi),
-        lambda goal, phi, perturb: tau,
-        STATE_SIZE,
-        goal_size,
-        0.01,
-        ImitationConfig(
-            iterations=iterations, updates_per_iteration=updates, normalise_after=1, hidden=(64, 64)
-        ),
+    """Algorithm 3 whose every iteration brings the same trajectory `tau`."""
+    config = ImitationConfig(
+        iterations=iterations, updates_per_iteration=updates, normalise_after=1, hidden=(64, 64)
     )
-    return result
+    return learn_low_level_policy([tau] * iterations, STATE_SIZE, goal_size, config)
 
 
 @pytest.fixture(scope="module")
@@ -59,14 +53,13 @@ def test_a_policy_taught_one_stroke_with_perturbed_demonstrations_retraces_it() 
     sponge along the expert's path, from the same start (its contact force is not asked to match)."""
     teacher = WipingTask()
     config = ImitationConfig(iterations=40, updates_per_iteration=50, hidden=(64, 64))
-    policy = learn_low_level_policy(
+    demonstrations = collect_demonstrations(
         lambda rng: (LAYOUT, 0.7),
         lambda layout, phi, perturb: teacher.demonstrate(phi, layout, perturb),
-        STATE_SIZE,
-        WipingTask.goal_size,
         teacher.control_period,
         config,
-    ).policy
+    )
+    policy = learn_low_level_policy(demonstrations, STATE_SIZE, WipingTask.goal_size, config).policy
     start, goal = LAYOUT
     strokes = []
     for task in (WipingTask(low_level=policy), WipingTask()):
@@ -83,9 +76,7 @@ def test_the_mse_update_starts_once_r_is_measured_and_the_loss_falls(
 ) -> None:
     tau = stroke_demonstration
     config = ImitationConfig(iterations=6, updates_per_iteration=7, normalise_after=4, hidden=(16,))
-    result = learn_low_level_policy(
-        lambda rng: (None, tau.phi), lambda g, p, b: tau, STATE_SIZE, 3, 0.01, config
-    )
+    result = learn_low_level_policy([tau] * 6, STATE_SIZE, 3, config)
     # Line 10 runs after each iteration from the one that completes R's standardisation on.
     assert len(result.losses) == (6 - 4 + 1) * 7
     assert result.losses[-3:].mean() < result.losses[:3].mean()
@@ -173,6 +164,36 @@ def test_a_demonstrations_labels_are_the_experts_references_not_the_perturbed_on
     tracked = perturbed.states[1 : periods + 1, REFERENCE]
     assert np.allclose(tracked - offsets[:periods], perturbed.references[:periods], atol=1e-12)
     assert not np.allclose(perturbed.states[5:20, :6], plain.states[5:20, :6], atol=1e-3)
+
+
+def test_iteration_is_demonstration_is_the_same_in_a_short_run_and_a_long_one() -> None:
+    """What lets a study read the start of a longer study's demonstrations, and what the batches' own
+    stream guarantees: collecting draws nothing the updates draw."""
+    teacher = PushingTask()
+
+    def collected(iterations: int) -> list[Demonstration]:
+        config = ImitationConfig(iterations=iterations, normalise_after=1)
+        return collect_demonstrations(
+            lambda rng: (teacher.sample_layout(rng), float(rng.uniform(8.0, 20.0))),
+            lambda layout, phi, perturb: teacher.demonstrate(phi, layout, perturb),
+            teacher.control_period,
+            config,
+        )
+
+    short, long = collected(2), collected(3)
+    for a, b in zip(short, long[:2], strict=True):
+        assert (
+            a.phi == b.phi
+            and np.array_equal(a.states, b.states)
+            and np.array_equal(a.references, b.references)
+        )
+
+
+def test_algorithm_3_runs_one_iteration_per_demonstration(stroke_demonstration: Demonstration) -> None:
+    with pytest.raises(ValueError, match="runs 3 iterations, got 2 trajectories"):
+        learn_low_level_policy(
+            [stroke_demonstration] * 2, STATE_SIZE, 3, ImitationConfig(iterations=3, normalise_after=1)
+        )
 
 
 def test_the_perturbation_is_smooth_with_the_spread_asked() -> None:

@@ -65,11 +65,11 @@ class LearnedControllerConfig(Protocol):
     """Learning episodes per SI run, at least 1."""
     eval_episodes: int = 5
     """Evaluation episodes per SI evaluation (section 5: 10)."""
-    n_trajectories: int = 30
+    n_trajectories: int = 20
     """Algorithm 4 trajectories, collected with each low level (A.7: 100)."""
-    pretrain_steps: int = 1000
+    pretrain_steps: int = 500
     """Adam steps of Algorithm 4."""
-    iterations: int = 60
+    iterations: int = 40
     """Algorithm 3's iterations: expert trajectories collected, one per iteration, per domain."""
     updates_per_iteration: int = 25
     """MSE updates of pi^l per collected trajectory."""
@@ -90,7 +90,7 @@ class LearnedControllerConfig(Protocol):
     mass_errors: tuple[float, ...] = (-4.0, -2.0, 0.0, 2.0, 4.0)
     """Errors in kg of the cube-mass estimate the controllers are compared at (notebook 05's claim: most
     pushes fail at +-4)."""
-    episodes_per_error: int = 4
+    episodes_per_error: int = 3
     """Episodes (truth, layout) per estimate error, each executed by both low levels."""
     comparison_seed: int = 0
     """Root seed of the comparison's episodes."""

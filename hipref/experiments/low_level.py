@@ -1,6 +1,6 @@
 """Which low-level policy pi^l a study's tasks execute (A.3): the analytic admittance-on-SPD stack, or the
-goal-conditioned network Algorithm 3 learns from it (`hipref.learners.imitation`), trained once per domain
-and config and cached, so that every run, notebook and worker of a profile shares one."""
+goal-conditioned network Algorithm 3 learns from it (`hipref.learners.imitation`): its demonstrations and the
+trained network are cached, built once per domain and config and shared by every run, notebook and worker."""
 
 from __future__ import annotations
 
@@ -10,12 +10,17 @@ from typing import Any
 
 import numpy as np
 
-from hipref.envs.low_level import LOW_LEVELS, STATE_SIZE, Perturb
+from hipref.envs.low_level import LOW_LEVELS, STATE_SIZE, Demonstration, Perturb
 from hipref.envs.task import Layout, Task
 from hipref.experiments.domains import domain_spec
-from hipref.learners.imitation import ImitationConfig, ImitationResult, learn_low_level_policy
+from hipref.learners.imitation import (
+    ImitationConfig,
+    ImitationResult,
+    collect_demonstrations,
+    learn_low_level_policy,
+)
 from hipref.numerics import one_thread
-from hipref.sweep import CacheDir, Expect, cached_artefact
+from hipref.sweep import CacheDir, Expect, cached_artefact, cached_prefix
 from hipref.validation import check_choice
 
 
@@ -41,26 +46,56 @@ class LowLevel:
         return (self.kind, dataclasses.asdict(self.imitation))
 
 
-def learned_policy(domain: str, imitation: ImitationConfig, cache_dir: CacheDir = None) -> ImitationResult:
-    """Algorithm 3 in `domain`: pi^l learnt by imitation of the analytic stack, each trajectory's goal a
-    random layout and its parameter uniform over the range; built once per config and cached in
-    `cache_dir` (None: the running sweep's, else the default directory)."""
-    spec = domain_spec(domain)
+@dataclass(frozen=True)
+class DemonstrationSpec:
+    """What Algorithm 3's demonstrations in a domain depend on: not the network or its updates, nor how many
+    are collected (the i-th is the same in a short run and a long one)."""
 
-    def build() -> ImitationResult:
-        expert = spec.make_task()
+    domain: str
+    perturbation: float
+    perturbation_time: float
+    seed: int
+
+
+def demonstrations(
+    domain: str, imitation: ImitationConfig, cache_dir: CacheDir = None
+) -> list[Demonstration]:
+    """Algorithm 3's expert trajectories in `domain` (`collect_demonstrations`): each trajectory's goal a
+    random layout and its parameter uniform over the range, executed by the analytic stack told it; built
+    once and cached in `cache_dir` (None: the running sweep's, else the default directory), a shorter
+    study reading the start of a longer one's."""
+    spec = DemonstrationSpec(domain, imitation.perturbation, imitation.perturbation_time, imitation.seed)
+
+    def build(count: int) -> list[Demonstration]:
+        expert = domain_spec(domain).make_task()
         low, high = expert.parameter_range
 
         def sample_goal_and_phi(rng: np.random.Generator) -> tuple[Layout, float]:
             return expert.sample_layout(rng), float(rng.uniform(low, high))
 
-        def collect(layout: Layout, phi: float, perturb: Perturb) -> Any:
+        def collect(layout: Layout, phi: float, perturb: Perturb) -> Demonstration:
             return expert.demonstrate(phi, layout, perturb)
 
+        return collect_demonstrations(sample_goal_and_phi, collect, expert.control_period, imitation, count)
+
+    return cached_prefix(
+        f"imitation_data_{domain}",
+        spec,
+        imitation.iterations,
+        build,
+        check=lambda item: isinstance(item, Demonstration),
+        cache_dir=cache_dir,
+    )
+
+
+def learned_policy(domain: str, imitation: ImitationConfig, cache_dir: CacheDir = None) -> ImitationResult:
+    """Algorithm 3 in `domain`: pi^l learnt by imitation of the analytic stack on `demonstrations`; built
+    once per config and cached in `cache_dir` (None: the running sweep's, else the default directory)."""
+
+    def build() -> ImitationResult:
+        data = demonstrations(domain, imitation, cache_dir)
         with one_thread():
-            return learn_low_level_policy(
-                sample_goal_and_phi, collect, STATE_SIZE, expert.goal_size, expert.control_period, imitation
-            )
+            return learn_low_level_policy(data, STATE_SIZE, data[0].goals.shape[1], imitation)
 
     expect = Expect(ImitationResult, lambda r: r.losses.ndim == 1 and r.policy.state_size == STATE_SIZE)
     return cached_artefact(f"low_level_{domain}", imitation, build, cache_dir=cache_dir, expect=expect)

@@ -4,7 +4,9 @@ The expert is the position-controlled system P (the analytic admittance + IK + S
 phi); pi^l is an MLP that maps the state s, the goal g and phi to the joint reference q_bar that SPD
 tracks. As in the paper, each iteration samples a goal and a parameter, collects one trajectory of P in a
 simulator set to that parameter, pushes it into a replay buffer R and updates pi^l by the MSE on a batch
-of N (state, goal, phi, q_bar) rows sampled from R.
+of N (state, goal, phi, q_bar) rows sampled from R. P does not depend on pi^l, so its trajectories are
+collected first (`collect_demonstrations`, lines 2-6, cached by the studies) and then pushed and learnt from
+in the same order (`learn_low_level_policy`, lines 8-10): the same iterations, in two loops.
 
 Covariate shift. A policy trained only on P's own states drifts off them and meets states it never saw:
 trained this way, pi^l lost the sponge's path by centimetres within a second. So, as in DART (Laskey et
@@ -20,7 +22,7 @@ network learns a bounded correction rather than the arm's configuration.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Protocol
 
@@ -235,23 +237,30 @@ Collect = Callable[[Any, float, Callable[[int], np.ndarray]], Trajectory]
 tracking P's reference plus `perturb(periods)` (periods, 6)."""
 
 
-def learn_low_level_policy(
+def algorithm_streams(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
+    """Algorithm 3's two random streams: the goals, parameters and perturbations of the collection, and the
+    batches of the updates."""
+    collection, batches = np.random.SeedSequence([seed, 3]).spawn(2)
+    return np.random.default_rng(collection), np.random.default_rng(batches)
+
+
+def collect_demonstrations(
     sample_goal_and_phi: Callable[[np.random.Generator], tuple[Any, float]],
     collect: Collect,
-    state_size: int,
-    goal_size: int,
     control_period: float,
     config: ImitationConfig,
-) -> ImitationResult:
-    """Algorithm 3: pi^l learnt by imitation of P. `sample_goal_and_phi` draws a goal and a parameter;
-    `collect` executes P (its demonstrations perturbed as `config` says, `control_period` s apart)."""
-    rng = np.random.default_rng(np.random.SeedSequence([config.seed, 3]))
-    buffer = ReplayBuffer(state_size, goal_size)
-    network: nn.Sequential | None = None
-    optimiser: torch.optim.Optimizer | None = None
-    scaling: Standardisation | None = None
-    losses: list[float] = []
-    for _ in range(config.iterations):
+    count: int | None = None,
+) -> list[Trajectory]:
+    """Algorithm 3, lines 2-6, of its first `count` iterations (all of `config.iterations` by default).
+
+    P does not depend on pi^l, so the trajectory of iteration i is the same whether the updates run between
+    the collections or after them: collected from a stream of their own, the demonstrations are an artefact
+    shared by every network trained on them, and iteration i's is the same in a short run and a long one.
+    `sample_goal_and_phi` draws a goal and a parameter; `collect` executes P, its reference perturbed as
+    `config` says (`control_period` s per row of the perturbation)."""
+    rng, _ = algorithm_streams(config.seed)
+    demonstrations = []
+    for _ in range(config.iterations if count is None else count):
         # 2: randomly sample goal g and environmental parameter phi
         goal, phi = sample_goal_and_phi(rng)
         # 4-6: set the simulator with phi, collect trajectory tau using P under goal g
@@ -260,6 +269,26 @@ def learn_low_level_policy(
             phi,
             lambda n: perturbation(rng, n, config.perturbation, config.perturbation_time, control_period),
         )
+        demonstrations.append(tau)
+    return demonstrations
+
+
+def learn_low_level_policy(
+    demonstrations: Sequence[Trajectory], state_size: int, goal_size: int, config: ImitationConfig
+) -> ImitationResult:
+    """Algorithm 3: pi^l learnt by imitation of P, iteration i pushing the i-th of P's `demonstrations`
+    (`collect_demonstrations`, lines 2-6) into R and updating pi^l on batches of R."""
+    if len(demonstrations) != config.iterations:
+        raise ValueError(
+            f"Algorithm 3 runs {config.iterations} iterations, got {len(demonstrations)} trajectories"
+        )
+    _, rng = algorithm_streams(config.seed)
+    buffer = ReplayBuffer(state_size, goal_size)
+    network: nn.Sequential | None = None
+    optimiser: torch.optim.Optimizer | None = None
+    scaling: Standardisation | None = None
+    losses: list[float] = []
+    for tau in demonstrations:
         # 8: push tau into R
         buffer.push(tau)
         if buffer.trajectories < config.normalise_after:

@@ -246,9 +246,7 @@ def pretrain(
     model.set_normaliser(Normaliser.fit(features))
     x_all = torch.as_tensor(features, dtype=torch.float32)
     target_all = torch.as_tensor(model.candidates.normalise(parameters), dtype=torch.float32)
-    distribution_all = torch.as_tensor(
-        target_distribution(model.candidates, parameters), dtype=torch.float32
-    )
+    distribution_all = torch.as_tensor(target_distribution(model.candidates, parameters), dtype=torch.float32)
     optimiser = adam(model.parameters(), config.learning_rate)
     rng = np.random.default_rng(seed)
     batch_size = min(config.batch_size, len(features))
