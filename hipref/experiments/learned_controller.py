@@ -73,7 +73,7 @@ class LearnedControllerConfig(Protocol):
     """Algorithm 3's iterations: expert trajectories collected, one per iteration, per domain."""
     updates_per_iteration: int = 25
     """MSE updates of pi^l per collected trajectory."""
-    batch_size: int = 256
+    batch_size: int = 128
     """N, rows per update."""
     hidden: tuple[int, ...] = (256, 256)
     """Widths of pi^l's hidden layers."""

@@ -59,7 +59,7 @@ class ImitationConfig:
     """Iterations of Algorithm 3: trajectories of P collected, one per iteration."""
     updates_per_iteration: int = 25
     """MSE updates of pi^l per collected trajectory (line 10, repeated)."""
-    batch_size: int = 256
+    batch_size: int = 128
     """N, rows per update."""
     hidden: tuple[int, ...] = (256, 256)
     """Widths of the MLP's hidden layers (tanh)."""
@@ -188,7 +188,7 @@ def make_network(inputs: int, hidden: tuple[int, ...], seed: int) -> nn.Sequenti
         layers += [nn.Linear(width, size), nn.Tanh()]
         width = size
     layers.append(nn.Linear(width, JOINTS))
-    return nn.Sequential(*layers).double()
+    return nn.Sequential(*layers)
 
 
 class LearnedLowLevelPolicy:
@@ -200,8 +200,8 @@ class LearnedLowLevelPolicy:
         self.state_size, self.goal_size = state_size, goal_size
         self.scaling = scaling
         linears = [m for m in network if isinstance(m, nn.Linear)]
-        self.weights = [m.weight.detach().numpy().copy() for m in linears]
-        self.biases = [m.bias.detach().numpy().copy() for m in linears]
+        self.weights = [m.weight.detach().numpy().astype(np.float64) for m in linears]
+        self.biases = [m.bias.detach().numpy().astype(np.float64) for m in linears]
 
     def offsets(self, inputs: np.ndarray) -> np.ndarray:
         """q_bar - q for input rows (rows, state + goal + 1)."""
@@ -301,8 +301,8 @@ def learn_low_level_policy(
         # 10: update pi^l with the MSE loss on an N-sized batch sampled from R
         for _ in range(config.updates_per_iteration):
             inputs, targets = buffer.sample(rng, config.batch_size)
-            x = torch.from_numpy((inputs - scaling.input_mean) / scaling.input_scale)
-            y = torch.from_numpy((targets - scaling.output_mean) / scaling.output_scale)
+            x = torch.from_numpy(((inputs - scaling.input_mean) / scaling.input_scale).astype(np.float32))
+            y = torch.from_numpy(((targets - scaling.output_mean) / scaling.output_scale).astype(np.float32))
             loss = torch.mean((network(x) - y) ** 2)
             optimiser.zero_grad()
             loss.backward()
