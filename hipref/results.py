@@ -44,6 +44,8 @@ METRICS: tuple[str, ...] = (
     "filter_recall",
     "imitation_mse",
     "goal_distance",
+    "goal_overshoot",
+    "goal_sideways",
 )
 """The metric names a results frame may use; a study that measures something new adds it here."""
 

@@ -82,6 +82,33 @@ def test_the_mse_update_starts_once_r_is_measured_and_the_loss_falls(
     assert result.losses[-3:].mean() < result.losses[:3].mean()
 
 
+def test_a_snapshot_is_the_policy_a_run_of_that_many_iterations_trains(
+    stroke_demonstration: Demonstration,
+) -> None:
+    """What lets notebook 10 draw pi^l's learning curve from one training run."""
+    tau = stroke_demonstration
+
+    def trained(iterations: int, snapshots: tuple[int, ...] = ()) -> ImitationResult:
+        config = ImitationConfig(
+            iterations=iterations,
+            updates_per_iteration=3,
+            normalise_after=2,
+            hidden=(16,),
+            snapshots=snapshots,
+        )
+        return learn_low_level_policy([tau] * iterations, STATE_SIZE, 3, config)
+
+    long, short = trained(6, snapshots=(3,)), trained(3)
+    assert set(long.snapshots) == {3} and not short.snapshots
+    copy = long.snapshots[3]
+    for a, b in zip(
+        [*copy.weights, *copy.biases], [*short.policy.weights, *short.policy.biases], strict=True
+    ):
+        assert np.array_equal(a, b)
+    # A copy: the three later iterations moved the trained policy, not the snapshot.
+    assert not np.array_equal(long.policy.weights[0], copy.weights[0])
+
+
 def test_r_holds_every_row_pushed_and_samples_them_uniformly() -> None:
     rng = np.random.default_rng(0)
     buffer = ReplayBuffer(STATE_SIZE, 2)
@@ -213,6 +240,8 @@ def test_the_perturbation_is_smooth_with_the_spread_asked() -> None:
         (lambda: ImitationConfig(perturbation=-0.1), "perturbation must be"),
         (lambda: ImitationConfig(hidden=()), "hidden must hold at least one"),
         (lambda: ImitationConfig(iterations=5, normalise_after=6), "normalise_after must be"),
+        (lambda: ImitationConfig(iterations=20, snapshots=(30,)), r"snapshots must be an integer \[10, 20\]"),
+        (lambda: ImitationConfig(iterations=20, snapshots=(5,)), r"snapshots must be an integer \[10, 20\]"),
     ],
 )
 def test_bad_settings_are_refused_naming_the_parameter(make, message: str) -> None:

@@ -148,6 +148,8 @@ class Push:
     """(periods, 21): joint positions (6), joint velocities (6), wrist force (3), joint reference (6)."""
     cube_xy: np.ndarray
     """(periods, 2): the cube's position on the desk."""
+    resting_xy: np.ndarray
+    """(2,): the cube's resting place on the desk."""
     final_error: float
     """Distance in m from the cube's resting place to its goal."""
     success: bool
@@ -394,9 +396,10 @@ class PushingTask:
         else:
             features, cube_xy = self._learned_push(self.low_level, mass_estimate)
         self.scene.check_stable()
-        final_error = float(np.linalg.norm(self._cube_xy() - self.goal))
+        resting_xy = self._cube_xy()
+        final_error = float(np.linalg.norm(resting_xy - self.goal))
         success = final_error <= self.config.scene.goal_tolerance
-        return Push(features, cube_xy, final_error, success)
+        return Push(features, cube_xy, resting_xy, final_error, success)
 
     def _learned_push(
         self, policy: JointReferencePolicy, mass_estimate: float

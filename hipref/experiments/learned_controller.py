@@ -5,7 +5,9 @@
 2. Controllers: the learned pi^l against its expert on the same episodes (true parameter, layout), with
    the true parameter and with estimates off it by the errors of notebook 05: success, and wiping's contact
    force over the stroke (`force_mean`, `force_std`) or pushing's final distance of the cube to its goal
-   (`goal_distance`).
+   (`goal_distance`: how far past the goal along the push, `goal_overshoot`, and to the side of the push's
+   line, `goal_sideways`); and with the true parameter, pi^l after fewer of Algorithm 3's iterations (its
+   `snapshots`): how its success grows with the demonstrations.
 3. SI on top: OSI and PESI (perfect preferences) on a grid of truths, executing either low level; each
    low level's SI is pretrained (Algorithm 4) on its own rollouts.
 """
@@ -43,6 +45,8 @@ ROW_METRICS: tuple[str, ...] = (
     "force_mean",
     "force_std",
     "goal_distance",
+    "goal_overshoot",
+    "goal_sideways",
     "param_error",
     "param_error_argmax",
     "param_error_multislice",
@@ -86,6 +90,9 @@ class LearnedControllerConfig(Protocol):
     Algorithm 3 read literally)."""
     perturbation_time: float = 0.2
     """Correlation time in s of that perturbation."""
+    snapshots: tuple[int, ...] = (15,)
+    """Algorithm 3 iterations after which pi^l is also executed with the true parameter, on the same episodes
+    (its learning curve), each between 10 (the iterations standardisation waits for) and `iterations`."""
     height_errors: tuple[float, ...] = (-0.05, 0.0, 0.05)
     """Errors in m of the desk-height estimate the controllers are compared at (notebook 05's claim: most
     strokes fail at +-0.05)."""
@@ -124,6 +131,7 @@ class LearnedControllerConfig(Protocol):
             learning_rate=self.imitation_learning_rate,
             perturbation=self.perturbation,
             perturbation_time=self.perturbation_time,
+            snapshots=tuple(self.snapshots),
         )
 
     def low_levels(self) -> tuple[LowLevel, LowLevel]:
@@ -150,6 +158,9 @@ class ComparisonCell:
     error: float
     seeds: tuple[int, ...]
     """One episode per seed, its truth and layout drawn from it: the same for every low level."""
+    snapshot: int | None = None
+    """For the learned low level: the policy after this many of Algorithm 3's iterations (None: the trained
+    one)."""
 
 
 def run_preparation_cell(cell: PreparationCell) -> pd.DataFrame:
@@ -166,7 +177,8 @@ def run_preparation_cell(cell: PreparationCell) -> pd.DataFrame:
 def _episode_metrics(task: Task, seed: int, error: float) -> tuple[float, dict[str, float]]:
     """One episode (truth and layout from `seed`) executed with the estimate off the truth by `error`
     (`truth_and_estimate`): its truth, and its success with wiping's contact force over the stroke or
-    pushing's final distance of the cube to its goal."""
+    pushing's final distance of the cube to its goal, along the push (past the goal: positive) and
+    across it."""
     rng = np.random.default_rng(seed)
     truth, estimate = truth_and_estimate(rng, error, *task.parameter_range)
     start, goal = task.sample_layout(rng)
@@ -181,14 +193,23 @@ def _episode_metrics(task: Task, seed: int, error: float) -> tuple[float, dict[s
     assert isinstance(task, PushingTask)
     task.reset(truth, start, goal)
     push = task.push(estimate)
-    return truth, {"success_rate": push.success, "goal_distance": push.final_error}
+    along = (goal - start) / np.linalg.norm(goal - start)
+    miss = push.resting_xy - goal
+    return truth, {
+        "success_rate": push.success,
+        "goal_distance": push.final_error,
+        "goal_overshoot": float(miss @ along),
+        "goal_sideways": abs(float(miss[0] * along[1] - miss[1] * along[0])),
+    }
 
 
 def run_comparison_cell(cell: ComparisonCell) -> pd.DataFrame:
     """The cell's episodes, each executed by its low level."""
     frames = []
+    learned = cell.low_level.kind == "learned"
+    iterations = (cell.snapshot or cell.low_level.imitation.iterations) if learned else None
     with one_thread():
-        task = make_task(cell.domain, cell.low_level)
+        task = make_task(cell.domain, cell.low_level, snapshot=cell.snapshot)
         for seed in cell.seeds:
             truth, metrics = _episode_metrics(task, seed, cell.error)
             frames.append(
@@ -202,6 +223,7 @@ def run_comparison_cell(cell: ComparisonCell) -> pd.DataFrame:
                     episode=0,
                     estimate_error=cell.error,
                     ground_truth=round(truth, 6),
+                    iterations=iterations,
                 )
             )
     return pd.concat(frames, ignore_index=True)
@@ -222,20 +244,21 @@ def preparation_cells(config: LearnedControllerConfig) -> list[PreparationCell]:
 
 
 def comparison_cells(config: LearnedControllerConfig) -> list[ComparisonCell]:
-    """Every (domain, error) executed by both low levels on the same episodes."""
-    return [
-        ComparisonCell(
-            domain,
-            low_level,
-            float(error),
-            tuple(child_seeds([config.comparison_seed, label], config.episodes_per_error)),
-        )
-        for label, (domain, errors) in enumerate(
-            (("wiping", config.height_errors), ("pushing", config.mass_errors))
-        )
-        for error in errors
-        for low_level in config.low_levels()
-    ]
+    """Every (domain, error) executed by both low levels on the same episodes; with the true parameter, also
+    by each snapshot of the learned one."""
+    analytic, learned = config.low_levels()
+    cells = []
+    for label, (domain, errors) in enumerate(
+        (("wiping", config.height_errors), ("pushing", config.mass_errors))
+    ):
+        seeds = tuple(child_seeds([config.comparison_seed, label], config.episodes_per_error))
+        for error in errors:
+            cells += [
+                ComparisonCell(domain, analytic, float(error), seeds),
+                ComparisonCell(domain, learned, float(error), seeds),
+            ]
+        cells += [ComparisonCell(domain, learned, 0.0, seeds, snapshot) for snapshot in config.snapshots]
+    return cells
 
 
 def si_cells(config: LearnedControllerConfig) -> list[SIRun]:

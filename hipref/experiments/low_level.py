@@ -40,10 +40,11 @@ class LowLevel:
 
     @property
     def key(self) -> tuple[Any, ...]:
-        """What rollouts depend on: the kind, and for a learned pi^l how it was trained."""
+        """What rollouts depend on: the kind, and for a learned pi^l how it was trained (not which of its
+        snapshots were kept along the way)."""
         if self.kind == "admittance":
             return (self.kind,)
-        return (self.kind, dataclasses.asdict(self.imitation))
+        return (self.kind, dataclasses.asdict(dataclasses.replace(self.imitation, snapshots=())))
 
 
 @dataclass(frozen=True)
@@ -97,13 +98,31 @@ def learned_policy(domain: str, imitation: ImitationConfig, cache_dir: CacheDir 
         with one_thread():
             return learn_low_level_policy(data, STATE_SIZE, data[0].goals.shape[1], imitation)
 
-    expect = Expect(ImitationResult, lambda r: r.losses.ndim == 1 and r.policy.state_size == STATE_SIZE)
+    expect = Expect(
+        ImitationResult,
+        lambda r: (
+            r.losses.ndim == 1
+            and r.policy.state_size == STATE_SIZE
+            and set(r.snapshots) == set(imitation.snapshots)
+        ),
+    )
     return cached_artefact(f"low_level_{domain}", imitation, build, cache_dir=cache_dir, expect=expect)
 
 
-def make_task(domain: str, low_level: LowLevel = LowLevel(), cache_dir: CacheDir = None) -> Task:
-    """`domain`'s task, its physics built afresh, executing `low_level`'s pi^l."""
+def make_task(
+    domain: str, low_level: LowLevel = LowLevel(), cache_dir: CacheDir = None, snapshot: int | None = None
+) -> Task:
+    """`domain`'s task, its physics built afresh, executing `low_level`'s pi^l; for a learned one, the policy
+    after `snapshot` of Algorithm 3's iterations (one of `ImitationConfig.snapshots`; None: the trained
+    one)."""
     spec = domain_spec(domain)
     if low_level.kind == "admittance":
+        if snapshot is not None:
+            raise ValueError(f"the analytic low level has no snapshots, got snapshot={snapshot!r}")
         return spec.make_task()
-    return spec.make_task(low_level=learned_policy(domain, low_level.imitation, cache_dir).policy)
+    trained = learned_policy(domain, low_level.imitation, cache_dir)
+    if snapshot is None:
+        return spec.make_task(low_level=trained.policy)
+    if snapshot not in trained.snapshots:
+        raise ValueError(f"snapshot must be one of {sorted(trained.snapshots)}, got {snapshot!r}")
+    return spec.make_task(low_level=trained.snapshots[snapshot])

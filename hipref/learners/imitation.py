@@ -74,6 +74,10 @@ class ImitationConfig:
     begin once it is (earlier iterations only collect)."""
     seed: int = 0
     """Seed of the sampled goals and parameters, the batches and the network's initial weights."""
+    snapshots: tuple[int, ...] = ()
+    """Iterations after which a copy of pi^l is also kept (`ImitationResult.snapshots`): its learning curve.
+    They change nothing of the training: the copy after i iterations is the policy an `iterations=i` run
+    trains."""
 
     def __post_init__(self) -> None:
         check_int("iterations", self.iterations, 1)
@@ -88,6 +92,8 @@ class ImitationConfig:
         check_range("perturbation_time", self.perturbation_time, 1e-3, 10.0)
         check_int("normalise_after", self.normalise_after, 1, self.iterations)
         check_int("seed", self.seed, 0)
+        for iteration in self.snapshots:
+            check_int("snapshots", iteration, self.normalise_after, self.iterations)
 
 
 def perturbation(
@@ -230,6 +236,8 @@ class ImitationResult(NamedTuple):
     policy: LearnedLowLevelPolicy
     losses: np.ndarray
     """(updates,): the MSE of each update's batch, in standardised units."""
+    snapshots: dict[int, LearnedLowLevelPolicy]
+    """The policy after each of `ImitationConfig.snapshots` iterations."""
 
 
 Collect = Callable[[Any, float, Callable[[int], np.ndarray]], Trajectory]
@@ -288,6 +296,7 @@ def learn_low_level_policy(
     optimiser: torch.optim.Optimizer | None = None
     scaling: Standardisation | None = None
     losses: list[float] = []
+    snapshots: dict[int, LearnedLowLevelPolicy] = {}
     for tau in demonstrations:
         # 8: push tau into R
         buffer.push(tau)
@@ -308,6 +317,8 @@ def learn_low_level_policy(
             loss.backward()
             optimiser.step()
             losses.append(float(loss.detach()))
+        if buffer.trajectories in config.snapshots:
+            snapshots[buffer.trajectories] = LearnedLowLevelPolicy(network, scaling, state_size, goal_size)
     assert network is not None and scaling is not None
     policy = LearnedLowLevelPolicy(network, scaling, state_size, goal_size)
-    return ImitationResult(policy, np.array(losses))
+    return ImitationResult(policy, np.array(losses), snapshots)
