@@ -10,6 +10,7 @@ from hipref.envs.low_level import REFERENCE, STATE_SIZE, Demonstration, no_pertu
 from hipref.envs.pushing import PushingTask
 from hipref.envs.task import clip
 from hipref.envs.wiping import WipingTask
+from hipref.experiments.learned_controller import LearnedControllerConfig
 from hipref.experiments.low_level import LowLevel
 from hipref.learners.imitation import (
     ImitationConfig,
@@ -242,6 +243,8 @@ def test_the_perturbation_is_smooth_with_the_spread_asked() -> None:
         (lambda: ImitationConfig(iterations=5, normalise_after=6), "normalise_after must be"),
         (lambda: ImitationConfig(iterations=20, snapshots=(30,)), r"snapshots must be an integer \[10, 20\]"),
         (lambda: ImitationConfig(iterations=20, snapshots=(5,)), r"snapshots must be an integer \[10, 20\]"),
+        (lambda: LearnedControllerConfig(iterations=30, snapshots=(30,)), r"snapshots must be .* \[10, 29\]"),
+        (lambda: LearnedControllerConfig(snapshots=(15, 15)), "snapshots must be distinct"),
     ],
 )
 def test_bad_settings_are_refused_naming_the_parameter(make, message: str) -> None:

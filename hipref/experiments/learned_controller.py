@@ -92,7 +92,8 @@ class LearnedControllerConfig(Protocol):
     """Correlation time in s of that perturbation."""
     snapshots: tuple[int, ...] = (15,)
     """Algorithm 3 iterations after which pi^l is also executed with the true parameter, on the same episodes
-    (its learning curve), each between 10 (the iterations standardisation waits for) and `iterations`."""
+    (its learning curve): distinct, each from 10 (the iterations standardisation waits for) to below
+    `iterations` (the trained policy is executed anyway)."""
     height_errors: tuple[float, ...] = (-0.05, 0.0, 0.05)
     """Errors in m of the desk-height estimate the controllers are compared at (notebook 05's claim: most
     strokes fail at +-0.05)."""
@@ -106,6 +107,10 @@ class LearnedControllerConfig(Protocol):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        for snapshot in self.snapshots:
+            check_int("snapshots", snapshot, ImitationConfig.normalise_after, self.iterations - 1)
+        if len(set(self.snapshots)) != len(self.snapshots):
+            raise ValueError(f"snapshots must be distinct, got {list(self.snapshots)!r}")
         self.imitation  # noqa: B018 - validates Algorithm 3's fields
         for name, errors, domain in (
             ("height_errors", self.height_errors, "wiping"),
