@@ -159,10 +159,9 @@ def test_a_trajectory_of_other_shapes_than_r_is_refused() -> None:
 
 def test_a_policy_for_another_tasks_goal_is_refused_by_the_task(stroke_demonstration: Demonstration) -> None:
     policy = fit_one_trajectory(stroke_demonstration, 3, iterations=1, updates=1).policy
-    pushing = PushingTask(low_level=policy)
-    layout = pushing.sample_layout(np.random.default_rng(0))
-    with pytest.raises(ValueError, match=r"goals must be \(1, 3\), got shape \(1, 4\)"):
-        pushing.rollout(14.0, 14.0, layout)
+    with pytest.raises(ValueError, match="trained for pushing's goal of 4 values, got one trained for 3"):
+        PushingTask(low_level=policy)
+    assert WipingTask(low_level=policy).low_level is policy
 
 
 def test_a_learned_wiping_slice_is_the_start_of_its_whole_rollout(
@@ -245,6 +244,8 @@ def test_the_perturbation_is_smooth_with_the_spread_asked() -> None:
         (lambda: ImitationConfig(iterations=20, snapshots=(5,)), r"snapshots must be an integer \[10, 20\]"),
         (lambda: LearnedControllerConfig(iterations=30, snapshots=(30,)), r"snapshots must be .* \[10, 29\]"),
         (lambda: LearnedControllerConfig(snapshots=(15, 15)), "snapshots must be distinct"),
+        (lambda: LearnedControllerConfig(height_errors=(-0.05, 0.05)), "height_errors must hold 0.0"),
+        (lambda: LearnedControllerConfig(mass_errors=(0.0, 4.0, 4.0)), "mass_errors must be distinct"),
     ],
 )
 def test_bad_settings_are_refused_naming_the_parameter(make, message: str) -> None:

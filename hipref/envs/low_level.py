@@ -59,6 +59,19 @@ class Demonstration(NamedTuple):
     """(periods, 6): q_bar, the joint reference P gave SPD over each period."""
 
 
+def check_policy(
+    policy: JointReferencePolicy | None, goal_size: int, task: str
+) -> JointReferencePolicy | None:
+    """A task's learned pi^l (None: the analytic one), refused before any physics unless it was trained for
+    the task's goal of `goal_size` values."""
+    if policy is not None and policy.goal_size != goal_size:
+        raise ValueError(
+            f"low_level must be a policy trained for {task}'s goal of {goal_size} values, "
+            f"got one trained for {policy.goal_size}"
+        )
+    return policy
+
+
 def relative_goal(points: np.ndarray, tool_pos: np.ndarray) -> np.ndarray:
     """The goal pi^l is given: the goal's points (points, dims), each less the tool tip's first `dims`
     coordinates, flattened."""

@@ -43,6 +43,7 @@ from hipref.envs.low_level import (
     Demonstration,
     JointReferencePolicy,
     Perturb,
+    check_policy,
     demonstration,
     execute_policy,
     initial_state,
@@ -171,7 +172,7 @@ class PushingTask:
         self, config: PushingConfig | None = None, *, low_level: JointReferencePolicy | None = None
     ) -> None:
         self.config = config or PushingConfig()
-        self.low_level = low_level
+        self.low_level = check_policy(low_level, self.goal_size, "pushing")
         """The learned pi^l rollouts execute; None: the analytic force-controlled push."""
         self.scene: Scene = make_scene(self.config.scene, with_cube=True)
         self.scene.set_desk_height(self.config.desk_height)

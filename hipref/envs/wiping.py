@@ -23,6 +23,7 @@ from hipref.envs.low_level import (
     Demonstration,
     JointReferencePolicy,
     Perturb,
+    check_policy,
     demonstration,
     execute_policy,
     initial_state,
@@ -139,7 +140,7 @@ class WipingTask:
         low_level: JointReferencePolicy | None = None,
     ) -> None:
         self.config = config or WipingConfig()
-        self.low_level = low_level
+        self.low_level = check_policy(low_level, self.goal_size, "wiping")
         """The learned pi^l rollouts execute; None: the analytic admittance + IK + SPD."""
         self.scene: Scene = make_scene(self.config.scene, with_cube=False)
         self.controller = ToolController(self.scene, self.config.controller, compliant=compliant)

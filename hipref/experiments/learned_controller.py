@@ -5,9 +5,9 @@
 2. Controllers: the learned pi^l against its expert on the same episodes (true parameter, layout), with
    the true parameter and with estimates off it by the errors of notebook 05: success, and wiping's contact
    force over the stroke (`force_mean`, `force_std`) or pushing's final distance of the cube to its goal
-   (`goal_distance`: how far past the goal along the push, `goal_overshoot`, and to the side of the push's
-   line, `goal_sideways`); and with the true parameter, pi^l after fewer of Algorithm 3's iterations (its
-   `snapshots`): how its success grows with the demonstrations.
+   (`goal_distance`; its part along the push, past the goal positive, `goal_overshoot`, and its distance to
+   the side of the push's line, `goal_sideways`); and with the true parameter, pi^l after fewer of
+   Algorithm 3's iterations (its `snapshots`): how its success grows with the demonstrations.
 3. SI on top: OSI and PESI (perfect preferences) on a grid of truths, executing either low level; each
    low level's SI is pretrained (Algorithm 4) on its own rollouts.
 """
@@ -96,10 +96,10 @@ class LearnedControllerConfig(Protocol):
     `iterations` (the trained policy is executed anyway)."""
     height_errors: tuple[float, ...] = (-0.05, 0.0, 0.05)
     """Errors in m of the desk-height estimate the controllers are compared at (notebook 05's claim: most
-    strokes fail at +-0.05)."""
+    strokes fail at +-0.05); distinct, 0.0 (the true parameter) among them."""
     mass_errors: tuple[float, ...] = (-4.0, 0.0, 4.0)
     """Errors in kg of the cube-mass estimate the controllers are compared at (notebook 05's claim: most
-    pushes fail at +-4)."""
+    pushes fail at +-4); distinct, 0.0 (the true parameter) among them."""
     episodes_per_error: int = 3
     """Episodes (truth, layout) per estimate error, each executed by both low levels."""
     comparison_seed: int = 0
@@ -118,8 +118,10 @@ class LearnedControllerConfig(Protocol):
         ):
             candidates = DOMAINS[domain].candidates
             bound = (candidates.high - candidates.low) / 2
-            if not errors:
-                raise ValueError(f"{name} must hold at least one error, got ()")
+            if not any(error == 0.0 for error in errors):
+                raise ValueError(f"{name} must hold 0.0 (the true parameter), got {list(errors)!r}")
+            if len(set(errors)) != len(errors):
+                raise ValueError(f"{name} must be distinct, got {list(errors)!r}")
             for error in errors:
                 check_range(name, error, -bound, bound)
         check_int("episodes_per_error", self.episodes_per_error, 1)
