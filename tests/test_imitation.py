@@ -12,6 +12,7 @@ from hipref.envs.task import clip
 from hipref.envs.wiping import WipingTask
 from hipref.experiments.learned_controller import LearnedControllerConfig
 from hipref.experiments.low_level import LowLevel
+from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.learners.imitation import (
     ImitationConfig,
     ImitationResult,
@@ -162,6 +163,21 @@ def test_a_policy_for_another_tasks_goal_is_refused_by_the_task(stroke_demonstra
     with pytest.raises(ValueError, match="trained for pushing's goal of 4 values, got one trained for 3"):
         PushingTask(low_level=policy)
     assert WipingTask(low_level=policy).low_level is policy
+
+
+def test_si_pretrained_on_a_learned_low_level_keeps_its_network_in_the_cache_it_is_given(
+    tmp_path, monkeypatch
+) -> None:
+    default, given = tmp_path / "default", tmp_path / "given"
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(default))
+    # A config of its own (seed 5), so that no other test of this process has the network in memory.
+    imitation = ImitationConfig(iterations=10, updates_per_iteration=2, hidden=(8,), seed=5)
+    data = PretrainData(
+        n_trajectories=2, trajectory_steps=20, pretrain_steps=2, low_level=LowLevel("learned", imitation)
+    )
+    pretrained_model("wiping", data, given)
+    assert len(list((given / "artefacts").glob("low_level_wiping-*.pkl"))) == 1
+    assert not list(default.rglob("*low_level_wiping*"))
 
 
 def test_a_learned_wiping_slice_is_the_start_of_its_whole_rollout(

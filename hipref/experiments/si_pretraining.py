@@ -64,16 +64,19 @@ class PretrainData:
         return {**dataclasses.asdict(self), "low_level": self.low_level.key}
 
 
-def collect_dataset(domain: str, data: PretrainData) -> tuple[np.ndarray, np.ndarray]:
+def collect_dataset(
+    domain: str, data: PretrainData, cache_dir: CacheDir = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Algorithm 4's D: every h-period slice of `n_trajectories` domain-randomised trajectories.
 
     Each trajectory has its parameter drawn uniformly from the range (A.7) and is made of rollouts of pi^l,
     each with its own uniformly random estimate, chained until `trajectory_steps` periods are collected:
     the estimate is what pi^l acts on, so a spread of estimates shows SI how each parameter looks through
-    both good and bad control. Returns (features (n, h * features per period), parameters (n,)).
+    both good and bad control. A learned pi^l is loaded from (or trained into) `cache_dir`. Returns (features
+    (n, h * features per period), parameters (n,)).
     """
     spec = domain_spec(domain)
-    task = make_task(domain, data.low_level)
+    task = make_task(domain, data.low_level, cache_dir)
     rng = np.random.default_rng(np.random.SeedSequence([data.seed, 4]))
     features, parameters = [], []
     for _ in range(data.n_trajectories):
@@ -98,7 +101,7 @@ def pretrained_model(domain: str, data: PretrainData, cache_dir: CacheDir = None
         features, parameters = cached_artefact(
             f"si_dataset_{domain}",
             data.collection,
-            lambda: collect_dataset(domain, data),
+            lambda: collect_dataset(domain, data, cache_dir),
             cache_dir=cache_dir,
             expect=Expect(
                 tuple,
