@@ -30,6 +30,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hipref.learners.mlp import tanh_mlp
 from hipref.numerics import adam
 from hipref.validation import check_int, check_range
 
@@ -185,18 +186,6 @@ def measure_standardisation(inputs: np.ndarray, targets: np.ndarray) -> Standard
     return Standardisation(inputs.mean(axis=0), spread(inputs), targets.mean(axis=0), spread(targets))
 
 
-def make_network(inputs: int, hidden: tuple[int, ...], seed: int) -> nn.Sequential:
-    """The MLP of pi^l: tanh hidden layers, a linear output of the 6 joints' (standardised) offsets."""
-    torch.manual_seed(seed)
-    layers: list[nn.Module] = []
-    width = inputs
-    for size in hidden:
-        layers += [nn.Linear(width, size), nn.Tanh()]
-        width = size
-    layers.append(nn.Linear(width, JOINTS))
-    return nn.Sequential(*layers)
-
-
 class LearnedLowLevelPolicy:
     """pi^l(q_bar | s, phi) as the tasks execute it (`hipref.envs.low_level.JointReferencePolicy`): the
     trained network's weights in float64 numpy arrays, so that a control period costs a few small
@@ -304,7 +293,8 @@ def learn_low_level_policy(
             continue
         if network is None:
             scaling = measure_standardisation(*buffer.arrays())
-            network = make_network(state_size + goal_size + 1, config.hidden, config.seed)
+            # The MLP of pi^l: tanh hidden layers, a linear output of the 6 joints' (standardised) offsets.
+            network = tanh_mlp(state_size + goal_size + 1, config.hidden, JOINTS, config.seed)
             optimiser = adam(network.parameters(), config.learning_rate)
         assert optimiser is not None and scaling is not None
         # 10: update pi^l with the MSE loss on an N-sized batch sampled from R

@@ -14,6 +14,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hipref.learners.mlp import tanh_mlp
 from hipref.numerics import adam
 from hipref.validation import check_choice, check_int, check_range
 
@@ -124,16 +125,7 @@ class SIModel(nn.Module):
         )
         self.register_buffer("feature_mean", torch.zeros(input_dim))
         self.register_buffer("feature_std", torch.ones(input_dim))
-        # Weights drawn from a private seeded stream: same seed, same initial model, global RNG untouched.
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(seed)
-            layers: list[nn.Module] = []
-            width = input_dim
-            for hidden in hidden_sizes:
-                layers += [nn.Linear(width, hidden), nn.Tanh()]
-                width = hidden
-            layers.append(nn.Linear(width, candidates.size))
-            self.net = nn.Sequential(*layers)
+        self.net = tanh_mlp(input_dim, tuple(hidden_sizes), candidates.size, seed)
 
     def set_normaliser(self, normaliser: Normaliser) -> None:
         """Store the input standardisation used from now on."""
