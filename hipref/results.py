@@ -46,6 +46,7 @@ METRICS: tuple[str, ...] = (
     "goal_distance",
     "goal_overshoot",
     "goal_sideways",
+    "true_model_probability",
 )
 """The metric names a results frame may use; a study that measures something new adds it here."""
 

@@ -30,6 +30,8 @@ from hipref.envs.task import Clip, Layout, Task, clip, probe_slice
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.low_level import make_task
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
+from hipref.learners.answer_models import told
+from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.coteaching import (
     CoPESIConfig,
     CoPESILearner,
@@ -37,6 +39,7 @@ from hipref.learners.coteaching import (
     reset_every_step_schedule,
 )
 from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS, PESIConfig, PESILearner
+from hipref.learners.queries import CHOSEN
 from hipref.learners.robust import (
     LabelSmoothingPESILearner,
     LikelihoodNoiseCoPESILearner,
@@ -71,7 +74,9 @@ class FineTuning:
     encourage_percentage: float = 0.25
     """p of Eq. 2 (A.7: 0.25)."""
     candidate_sampling: str = "uniform"
-    """'uniform' (Algorithm 2: 'sampled from Phi') or 'belief' (from SI's current distribution)."""
+    """'uniform' (Algorithm 2: 'sampled from Phi'), 'belief' (from SI's current distribution) or a query
+    rule of `hipref.learners.queries` ('thompson', 'information_gain', 'volume_removal'); the Bayesian
+    learner takes 'uniform' or a rule."""
     pr_domain: str = "query"
     """Pr of Eq. 2 over the queried candidates ('query') or all of Phi ('all')."""
     fine_tuned: str = "all"
@@ -121,6 +126,12 @@ class SIRun:
     teacher: TeacherModel = TeacherModel()  # noqa: RUF009 - frozen, so a shared default is safe
     """The scripted teacher's model (`hipref.teachers.models`); the paper's uniform flip of rate `noise`
     by default. Its rows carry a `teacher` column unless it is the default."""
+    told_model: bool = False
+    """'bayes' only: the learner is told the teacher's model and flip rate, instead of weighing every
+    model of `hipref.learners.answer_models.model_family` by its marginal likelihood."""
+    checkpoints: tuple[int, ...] = ()
+    """Learning episodes after which the learner is evaluated, increasing, from 0 to `episodes`; empty:
+    every `eval_every` (section 5)."""
 
     def __post_init__(self) -> None:
         spec = domain_spec(self.domain)
@@ -143,9 +154,29 @@ class SIRun:
         check_int("eval_every", self.eval_every, 1, self.episodes)
         check_int("eval_episodes", self.eval_episodes, 1)
         check_int("eval_slices", self.eval_slices, 1)
+        if not isinstance(self.told_model, bool):
+            raise ValueError(f"told_model must be True or False, got {self.told_model!r}")
+        if self.told_model and self.method != "bayes":
+            raise ValueError(f"told_model is for the 'bayes' method, got method {self.method!r}")
+        if self.method == "bayes" and self.fine_tuning.candidate_sampling == "belief":
+            raise ValueError(
+                "candidate_sampling 'belief' is PESI's; the 'bayes' method takes 'uniform' or a rule"
+            )
+        for checkpoint in self.checkpoints:
+            check_int("checkpoints", checkpoint, 0, self.episodes)
+        if list(self.checkpoints) != sorted(set(self.checkpoints)):
+            raise ValueError(f"checkpoints must be increasing and distinct, got {self.checkpoints!r}")
+
+    @property
+    def evaluated_at(self) -> tuple[int, ...]:
+        """The learning episodes after which the learner is evaluated."""
+        return self.checkpoints or tuple(range(0, self.episodes + 1, self.eval_every))
 
 
-LearnerBuilder = Callable[["SIRun", SIModel, dict[str, Any], int], "PESILearner | None"]
+Learner = PESILearner | BayesLearner
+"""What a method's learner is: PESI (and the learners built on it) or the Bayesian learner."""
+
+LearnerBuilder = Callable[["SIRun", SIModel, dict[str, Any], int], "Learner | None"]
 """Builds a method's learner from the cell, the pretrained model, the PESI settings every method shares
 (`common`) and the learner's seed; None for a method that learns nothing."""
 
@@ -155,6 +186,11 @@ def _coteaching_config(cell: SIRun, common: dict[str, Any]) -> CoPESIConfig:
     learned = cell.fine_tuning.coteaching_schedule == "learned"
     schedule = CoPESIConfig if learned else reset_every_step_schedule
     return schedule(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
+
+
+def _bayes_config(cell: SIRun) -> BayesConfig:
+    answer_model = told(cell.teacher, cell.noise) if cell.told_model else None
+    return BayesConfig(cell.n_candidates, cell.fine_tuning.candidate_sampling, answer_model)
 
 
 def _robust_config(cell: SIRun, common: dict[str, Any]) -> RobustPESIConfig:
@@ -189,22 +225,26 @@ LEARNERS: dict[str, LearnerBuilder] = {
     "co_pesi_likelihood": lambda cell, model, common, seed: LikelihoodNoiseCoPESILearner(
         model, _coteaching_config(cell, common), seed
     ),
+    "bayes": lambda cell, model, common, seed: BayesLearner(
+        model.candidates, _bayes_config(cell), seed, si_model=model
+    ),
 }
 """Every method by name. osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy
 (A.8); co_pesi: Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level
 estimated by Algorithm 5 from the preferences so far (A.9). Beyond the paper (`hipref.learners.robust`):
 pesi_smoothed: label smoothing of Eq. 2 (conservative); pesi_unbiased: the unbiased loss with the estimated
 flip rate; pesi_small_loss: SI's own small-loss filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood:
-Algorithm 1 with the maximum marginal likelihood flip rate."""
+Algorithm 1 with the maximum marginal likelihood flip rate; bayes: the exact posterior over phi from every
+answer (`hipref.learners.bayes`), its model of the teacher chosen by marginal likelihood unless told."""
 
 METHODS: tuple[str, ...] = tuple(LEARNERS)
 """The methods' names, in LEARNERS' order."""
 
-PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce"}
+PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce", "bayes"}
 """Methods defined on pairs only (N = 2): classifiers of pairs, or losses mixing y and -y."""
 
 
-def make_learner(cell: SIRun, model: SIModel, seed: int) -> PESILearner | None:
+def make_learner(cell: SIRun, model: SIModel, seed: int) -> Learner | None:
     """The learner of `cell.method` on a copy of the pretrained model; None for OSI (no updates)."""
     spec = domain_spec(cell.domain)
     tuning = cell.fine_tuning
@@ -333,8 +373,23 @@ def _record(clips: list[Clip], clip: Clip) -> np.ndarray:
     return clip.tau
 
 
-def evaluate(task: Task, model: SIModel, episodes: list[Episode], ground_truth: float) -> dict[str, float]:
-    """SI frozen on one checkpoint's episodes: its errors by three read-outs, and the task's success.
+class Estimator(NamedTuple):
+    """How a learner estimates phi from slices: E[phi] on each, and the most probable value on one."""
+
+    expectations: Callable[[np.ndarray], np.ndarray]
+    mode: Callable[[np.ndarray], float]
+
+
+def estimator(learner: Learner | SIModel) -> Estimator:
+    """SI's read-outs (OSI, and every PESI learner's fine-tuned SI), or the Bayesian learner's."""
+    if isinstance(learner, BayesLearner):
+        return Estimator(learner.estimates, learner.mode)
+    model = learner if isinstance(learner, SIModel) else learner.model
+    return Estimator(model.predict, lambda tau: float(model.predict_mode(tau)))
+
+
+def evaluate(task: Task, model: Estimator, episodes: list[Episode], ground_truth: float) -> dict[str, float]:
+    """A frozen learner on one checkpoint's episodes: its errors by three read-outs, and the task's success.
 
     param_error: |E_Pr[phi] - phi| on the first slice, the estimate the controller is given and the task
     attempted with (success_rate). param_error_argmax: the most probable candidate instead of the mean.
@@ -348,10 +403,10 @@ def evaluate(task: Task, model: SIModel, episodes: list[Episode], ground_truth: 
     }
     successes = []
     for episode in episodes:
-        expectations = model.predict(episode.slices)
+        expectations = model.expectations(episode.slices)
         phi_hat = float(expectations[0])
         errors["param_error"].append(abs(phi_hat - ground_truth))
-        errors["param_error_argmax"].append(abs(float(model.predict_mode(episode.slices[0])) - ground_truth))
+        errors["param_error_argmax"].append(abs(model.mode(episode.slices[0]) - ground_truth))
         errors["param_error_multislice"].append(abs(float(expectations.mean()) - ground_truth))
         successes.append(task.rollout(ground_truth, phi_hat, episode.layout).success)
     return {**{k: float(np.mean(v)) for k, v in errors.items()}, "success_rate": float(np.mean(successes))}
@@ -375,7 +430,8 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         learner = make_learner(cell, model, integer_seed(learner_seq))
         learn_rng = np.random.default_rng(learn_seq)
         h = cell.data.history
-        n_checkpoints = cell.episodes // cell.eval_every + 1
+        evaluated_at = cell.evaluated_at
+        n_checkpoints = len(evaluated_at)
         low_level = cell.data.low_level.key
         spec = EvaluationSpec(
             cell.domain, truth, cell.seed, cell.eval_episodes, cell.eval_slices, h, low_level
@@ -383,13 +439,14 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         checkpoints = evaluation_episodes(task, spec, n_checkpoints)
         clips = None
         if learner is not None and cell.fine_tuning.candidate_sampling == "uniform":
+            # The Bayesian learner draws uniform queries as PESI does: the same clips, replayed.
             learning = LearningSpec(cell.domain, truth, cell.seed, cell.n_candidates, h, low_level)
             clips = learning_clips(task, learning, cell.episodes, model)
         rows: list[tuple[int, str, float]] = []
         for episode in range(cell.episodes + 1):
-            if episode % cell.eval_every == 0:
-                current = model if learner is None else learner.model
-                metrics = evaluate(task, current, checkpoints[episode // cell.eval_every], truth)
+            if episode in evaluated_at:
+                current = estimator(model if learner is None else learner)
+                metrics = evaluate(task, current, checkpoints[evaluated_at.index(episode)], truth)
                 if hasattr(learner, "filter_precision_recall"):
                     precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
                     metrics |= {"filter_precision": precision, "filter_recall": recall}
@@ -414,4 +471,10 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         n_candidates=cell.n_candidates,
         **({} if cell.teacher == TeacherModel() else {"teacher": cell.teacher.name}),
         **({} if low_level == ("admittance",) else {"low_level": cell.data.low_level.kind}),
+        **(
+            {"query_rule": cell.fine_tuning.candidate_sampling}
+            if cell.fine_tuning.candidate_sampling in CHOSEN
+            else {}
+        ),
+        **({"told_model": True} if cell.told_model else {}),
     )

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from hipref.learners.answer_models import AnswerModel
+from hipref.learners.queries import CHOSEN, choose_pair
 from hipref.learners.sysid import SIModel
 from hipref.teachers.preference import NoLabel, PreferenceQuery, preference_label_vector
 from hipref.validation import check_choice, check_int, check_range
@@ -26,8 +28,9 @@ SI_LOSSES: tuple[str, ...] = ("soft", "standard")
 
 PR_DOMAINS: tuple[str, ...] = ("query", "all")
 """Over what Pr in Eq. 2/3 is a distribution: the queried candidates, or all of Phi (see `log_probs`)."""
-CANDIDATE_SAMPLING: tuple[str, ...] = ("uniform", "belief")
-"""How Algorithm 2 draws the queried candidates from Phi (see `PESILearner.ask`)."""
+CANDIDATE_SAMPLING: tuple[str, ...] = ("uniform", "belief", *CHOSEN)
+"""How Algorithm 2 draws the queried candidates from Phi (see `PESILearner.ask`): uniformly, from SI's
+belief, or by a query rule of `hipref.learners.queries` on that belief (pairs only)."""
 FINE_TUNED: tuple[str, ...] = ("all", "last_layer", "output_bias")
 """Which of SI's parameters preferences fine-tune: every layer, the output layer, or its bias alone."""
 
@@ -114,7 +117,9 @@ class PESIConfig:
     """h, control periods per trajectory slice tau (Algorithm 2's input; Table 2: 3)."""
     candidate_sampling: str = "uniform"
     """'uniform': phi_0..phi_{N-1} drawn uniformly from Phi (Algorithm 2: 'sampled from Phi'); 'belief':
-    drawn from SI's Pr(phi) at the previous query's slice, mixed with `query_uniform_mix` of uniform."""
+    drawn from SI's Pr(phi) at the previous query's slice, mixed with `query_uniform_mix` of uniform; or a
+    query rule of `hipref.learners.queries` ('thompson', 'information_gain', 'volume_removal') scoring
+    pairs on that Pr (uniform before the first query) with the flip model's likelihood, pairs only."""
     query_uniform_mix: float = 0.05
     """With 'belief' sampling, the weight of a uniform distribution mixed into Pr(phi), in (0, 1]: it keeps
     every candidate askable and lets N distinct candidates be drawn even from a collapsed distribution."""
@@ -132,6 +137,11 @@ class PESIConfig:
         check_int("n_candidates", self.n_candidates, 2)
         check_int("history", self.history, 1)
         check_choice("candidate_sampling", self.candidate_sampling, CANDIDATE_SAMPLING)
+        if self.candidate_sampling in CHOSEN and self.n_candidates != 2:
+            raise ValueError(
+                f"candidate_sampling {self.candidate_sampling!r} asks pairs: n_candidates must be 2, "
+                f"got {self.n_candidates}"
+            )
         check_range("query_uniform_mix", self.query_uniform_mix, 1e-9, 1.0)
         check_choice("pr_domain", self.pr_domain, PR_DOMAINS)
         check_choice("fine_tuned", self.fine_tuned, FINE_TUNED)
@@ -227,14 +237,26 @@ class PESILearner:
         updates are those of executing all N.
         """
         n = self.config.n_candidates
-        chosen = self._query_rng.choice(
-            self.candidates.size, size=n, replace=False, p=self._query_distribution()
-        )
+        if self.config.candidate_sampling in CHOSEN:
+            chosen = np.array(self._chosen_pair())
+        else:
+            chosen = self._query_rng.choice(
+                self.candidates.size, size=n, replace=False, p=self._query_distribution()
+            )
         candidates = tuple(float(c) for c in self.candidates.values[chosen])
         sliced = candidates[int(self._query_rng.integers(n))]
         tau = self._check_features(observe(sliced, self._query_rng))
         self._last_slice = tau
         return PreferenceQuery(candidates, features=tau)
+
+    def _chosen_pair(self) -> tuple[int, int]:
+        size = self.candidates.size
+        belief = (
+            np.full(size, 1.0 / size) if self._last_slice is None else self.distribution(self._last_slice)
+        )
+        values = self.candidates.values
+        rule = self.config.candidate_sampling
+        return choose_pair(rule, self.candidates, values, [(AnswerModel(), belief)], self._query_rng)
 
     def _query_distribution(self) -> np.ndarray:
         size = self.candidates.size

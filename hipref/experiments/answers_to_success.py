@@ -1,0 +1,257 @@
+"""From answers to success (notebook 12, beyond the paper): how much of what its answers say a learner uses.
+
+Two parts, on one fixed grid of environments (truth, seed) per domain, every learner of an environment
+answered by the same teacher stream:
+
+- **The answers** (no physics, `run_answers`): the Bayesian learner (`hipref.learners.bayes`) asks a
+  scripted teacher and is told; its error |median - phi*| after every number of answers, per teacher model
+  and flip rate, query rule, and answer model told or chosen by marginal likelihood. Against it the Shannon
+  floor: to single out one of K candidates from answers each wrong with probability e takes at least
+  log2(K) / (1 - h(e)) answers, h the binary entropy (`shannon_floor`).
+- **The task** (MuJoCo, `hipref.experiments.si_run.run_si`): PESI, CO-PESI and the Bayesian learner, each
+  with uniform and chosen queries, evaluated after 0, 5, 10, 20, 33, ... answers on the same evaluation
+  episodes: the error of the estimate the controller gets and the success of the task executed with it.
+
+The Bayesian learner of the task part is not told the teacher's model; under uniform queries it asks
+exactly PESI's queries (the same seed and draws), so the two differ only in what they make of the answers.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from hipref.experiments.domains import DOMAINS, domain_spec
+from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_run import METHODS, FineTuning, SIRun, run_si, run_streams
+from hipref.learners.answer_models import told
+from hipref.learners.bayes import BayesConfig, BayesLearner
+from hipref.learners.queries import QUERY_RULES
+from hipref.numerics import one_thread
+from hipref.results import tidy_rows
+from hipref.seeds import integer_seed
+from hipref.sweep import run_sweep
+from hipref.teachers.models import TEACHER_KINDS, TeacherModel
+from hipref.teachers.preference import ScriptedPreferenceTeacher
+from hipref.validation import check_choice, check_int, check_range
+
+TASK_METHODS: tuple[str, ...] = ("pesi", "co_pesi", "bayes")
+"""The learners of the task part: the paper's two and the Bayesian one."""
+
+CONSISTENT = 0.9
+"""'Reaches one grid step' means: in at least this share of the environments."""
+
+
+def shannon_floor(candidates: int, flip: float) -> float:
+    """log2(K) / (1 - h(e)): the fewest answers, each wrong with probability e, that can single out one of K
+    candidates (each answer carries at most the capacity 1 - h(e) bits of a binary symmetric channel)."""
+    check_int("candidates", candidates, 2)
+    check_range("flip", flip, 0.0, 0.5 - 1e-9)
+    entropy = 0.0 if flip == 0 else -flip * math.log2(flip) - (1 - flip) * math.log2(1 - flip)
+    return math.log2(candidates) / (1.0 - entropy)
+
+
+def answer_counts(episodes: int) -> tuple[int, ...]:
+    """The numbers of answers after which the answers part records the error: every one up to 40, then
+    every 5 up to 100, then every 10, and the last."""
+    counts = {*range(1, 41), *range(45, 101, 5), *range(110, episodes + 1, 10), episodes}
+    return tuple(sorted(c for c in counts if c <= episodes))
+
+
+@dataclass(frozen=True)
+class AnswersCell:
+    """One Bayesian learner answered by one scripted teacher in one environment, without physics."""
+
+    domain: str
+    """'wiping' or 'pushing'."""
+    ground_truth: float
+    """The environment's true parameter."""
+    seed: int
+    """The environment's seed: with the truth, the teacher's and the learner's streams (`run_streams`)."""
+    teacher: str
+    """The teacher model's kind (`hipref.teachers.models.TEACHER_KINDS`)."""
+    noise: float
+    """Its uniform flip rate."""
+    query_rule: str
+    """One of QUERY_RULES."""
+    told_model: bool
+    """Told the teacher's model and flip rate, or weighing every model by its marginal likelihood."""
+    episodes: int
+    """Answers asked."""
+
+    def __post_init__(self) -> None:
+        spec = domain_spec(self.domain)
+        check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
+        check_int("seed", self.seed, 0)
+        check_choice("teacher", self.teacher, TEACHER_KINDS)
+        check_range("noise", self.noise, 0.0, 0.5 - 1e-9)
+        check_choice("query_rule", self.query_rule, QUERY_RULES)
+        if not isinstance(self.told_model, bool):
+            raise ValueError(f"told_model must be True or False, got {self.told_model!r}")
+        check_int("episodes", self.episodes, 1)
+
+
+def run_answers(cell: AnswersCell) -> pd.DataFrame:
+    """The learner's error after each of `answer_counts` (a sweep cell), and at the end the posterior's
+    filter of wrong answers against the teacher's record and the probability it gives the true kind."""
+    phi = domain_spec(cell.domain).candidates
+    teacher_seq, learner_seq, _, _ = run_streams(cell.seed, cell.ground_truth)
+    model = TeacherModel(cell.teacher)
+    teacher = ScriptedPreferenceTeacher(
+        cell.ground_truth, cell.noise, np.random.default_rng(teacher_seq), model, scale=phi.high - phi.low
+    )
+    answer_model = told(model, cell.noise) if cell.told_model else None
+    learner = BayesLearner(
+        phi, BayesConfig(query_rule=cell.query_rule, answer_model=answer_model), integer_seed(learner_seq)
+    )
+    counts = set(answer_counts(cell.episodes))
+    rows: list[tuple[int, str, float]] = []
+    with one_thread():
+        for answered in range(1, cell.episodes + 1):
+            query = learner.ask()
+            learner.tell(query, teacher.answer(query))
+            if answered in counts:
+                rows.append((answered, "param_error", abs(learner.estimate() - cell.ground_truth)))
+    precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
+    kind = told(model, 0.0).kind
+    final = {
+        "filter_precision": precision,
+        "filter_recall": recall,
+        "true_model_probability": learner.posterior.model_posterior().get(kind, 0.0),
+    }
+    rows += [(cell.episodes, name, value) for name, value in final.items() if np.isfinite(value)]
+    return tidy_rows(
+        rows,
+        domain=cell.domain,
+        method="bayes",
+        noise=cell.noise,
+        seed=cell.seed,
+        ground_truth=round(cell.ground_truth, 6),
+        teacher=cell.teacher,
+        query_rule=cell.query_rule,
+        told_model=cell.told_model,
+        part="answers",
+    )
+
+
+@dataclass(frozen=True)
+class AnswersConfig(Protocol):
+    """Parameters of notebook 12 (the quick profile's sizes by default)."""
+
+    domains: tuple[str, ...] = ("wiping", "pushing")
+    """Domains to run: 'wiping' (desk height) and 'pushing' (cube mass)."""
+    heights: tuple[float, ...] = (0.62, 0.78)
+    """True desk heights in m of the wiping environments, each in [0.5, 0.9]."""
+    masses: tuple[float, ...] = (11.5, 16.5)
+    """True cube masses in kg of the pushing environments, each in [8, 20]."""
+    episodes: int = 66
+    """Answers per run, at least 1."""
+    checkpoints: tuple[int, ...] = (0, 5, 10, 20, 33, 66)
+    """Answers after which the task part evaluates (increasing, from 0 to `episodes`)."""
+    eval_episodes: int = 3
+    """Evaluation episodes per checkpoint of the task part (section 5: 10)."""
+    noise_levels: tuple[float, ...] = (0.0, 0.2)
+    """Flip rates of the paper's teacher ('mistake') in the answers part, each in [0, 0.5)."""
+    teachers: tuple[str, ...] = ("distance",)
+    """The other teacher models of the answers part (notebook 11's, each at its default; no flips)."""
+    answer_rules: tuple[str, ...] = ("uniform", "information_gain")
+    """Query rules of the answers part under the paper's teacher (the other teachers: information_gain)."""
+    task_noise_levels: tuple[float, ...] = (0.2,)
+    """Flip rates of the paper's teacher in the task part, each in [0, 0.5); CO-PESI runs where above 0."""
+    methods: tuple[str, ...] = TASK_METHODS
+    """Learners of the task part, of TASK_METHODS."""
+    task_rules: tuple[str, ...] = ("uniform", "information_gain")
+    """Query rules of the task part, of QUERY_RULES; PESI's scores pairs on SI's belief."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_set("domains", self.domains, tuple(DOMAINS))
+        _check_set(
+            "teachers",
+            self.teachers,
+            tuple(k for k in TEACHER_KINDS if k not in ("oracle", "mistake")),
+            empty=True,
+        )
+        _check_set("answer_rules", self.answer_rules, QUERY_RULES)
+        _check_set("methods", self.methods, TASK_METHODS)
+        _check_set("task_rules", self.task_rules, QUERY_RULES)
+        for name in ("noise_levels", "task_noise_levels"):
+            levels = getattr(self, name)
+            _check_set(name, levels, None)
+            for level in levels:
+                check_range(name, level, 0.0, 0.5 - 1e-9)
+        if not self.checkpoints or self.checkpoints[0] != 0 or self.checkpoints[-1] != self.episodes:
+            raise ValueError(
+                f"checkpoints must run from 0 to episodes={self.episodes}, got {self.checkpoints!r}"
+            )
+        SIRun("wiping", "pesi", 0.7, episodes=self.episodes, checkpoints=self.checkpoints)
+
+    def answers_cells(self) -> list[AnswersCell]:
+        """The answers part: per environment, the paper's teacher at every flip rate under every rule,
+        told and not told; every other teacher under information gain, told and not told."""
+        settings = [("mistake", e, rule) for e in self.noise_levels for rule in self.answer_rules]
+        settings += [(teacher, 0.0, "information_gain") for teacher in self.teachers]
+        return [
+            AnswersCell(domain, truth, seed, teacher, noise, rule, told_model, self.episodes)
+            for domain in self.domains
+            for teacher, noise, rule in settings
+            for told_model in (True, False)
+            for truth, seed in self.environments(domain)
+        ]
+
+    def task_cells(self) -> list[SIRun]:
+        """The task part: every learner under every rule at every flip rate (CO-PESI above 0)."""
+        return [
+            self.run_cell(
+                domain,
+                method,
+                truth,
+                seed,
+                fine_tuning=FineTuning(learning_rate=self.learning_rate, candidate_sampling=rule),
+                noise=noise,
+                checkpoints=self.checkpoints,
+            )
+            for domain in self.domains
+            for noise in self.task_noise_levels
+            for method in self.methods
+            if not (method.startswith("co_pesi") and noise == 0)
+            for rule in self.task_rules
+            for truth, seed in self.environments(domain)
+        ]
+
+
+def _check_set(
+    name: str, values: tuple[Any, ...], allowed: tuple[str, ...] | None, empty: bool = False
+) -> None:
+    if not values and not empty:
+        raise ValueError(f"{name} must hold at least one value, got ()")
+    if len(set(values)) != len(values):
+        raise ValueError(f"{name} must not repeat a value, got {values!r}")
+    if allowed is not None:
+        for value in values:
+            check_choice(name, value, allowed)
+
+
+def run_cell(cell: SIRun | AnswersCell) -> pd.DataFrame:
+    """One cell of either part (a sweep cell function)."""
+    return run_answers(cell) if isinstance(cell, AnswersCell) else run_si(cell)
+
+
+def run(config: AnswersConfig, **sweep: Any) -> pd.DataFrame:
+    """Both parts' tidy rows, with the columns `part` ('task' or 'answers'), teacher, query_rule and
+    told_model on every row. One sweep, the task part's runs first: they take the longest."""
+    config.pretrain(config.domains, **sweep)
+    task, answers = config.task_cells(), config.answers_cells()
+    rows = run_sweep(run_cell, [*task, *answers], desc="answers to success", **sweep)
+    rows["part"] = rows["part"].fillna("task")
+    rows["teacher"] = rows["teacher"].fillna("mistake")
+    rows["query_rule"] = rows["query_rule"].fillna("uniform")
+    rows["told_model"] = rows["told_model"].fillna(False).astype(bool)
+    return rows
+
+
+assert set(TASK_METHODS) <= set(METHODS)

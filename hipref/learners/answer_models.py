@@ -1,0 +1,220 @@
+"""What an answer says about phi: the likelihood of a teacher's answer given the truth (beyond the paper).
+
+For one unknown scalar a preference between candidates says on which side of their midpoint the truth lies,
+up to the teacher's errors. Each model here gives, for every hypothetical truth phi (a cell of the posterior,
+`hipref.learners.bayes`) and a query's candidates, the probability of each possible answer: candidate i
+preferred (i < N), 'skip' (column N) or 'equally good' (column N + 1). They mirror the scripted teachers of
+`hipref.teachers.models` (d_i = |phi_i - phi| / R, R the range's width):
+
+- 'flip': the nearest candidate, then flipped with probability e to one of the others (the paper's teacher;
+  e = 0 is the oracle);
+- 'stochastic': Bradley-Terry, P(i) = softmax(-beta d)_i;
+- 'skip': 'skip' when min_i d_i > skip_distance, else the nearest;
+- 'equal': 'equally good' when d_(2) - d_(1) < equal_margin, else the nearest;
+- 'myopic': the nearest to a picture m of the truth, m ~ phi + N(0, (spread R)^2), so P(i) is the mass of
+  candidate i's Voronoi interval (the myopic teacher's marginal law; its errors' correlation over consecutive
+  answers is not modelled);
+- 'distance': the nearest, wrong with probability confusion_max exp(-|d_a - d_b| / confusion_width) (pairs).
+
+Every model but 'flip' takes the uniform flip e on top of its rule, as the scripted teacher applies it last;
+'skip' and 'equally good' are never flipped. Ties (a truth exactly at a midpoint) split evenly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.special import ndtr
+
+from hipref.teachers.models import TeacherModel
+from hipref.validation import check_choice, check_range
+
+ANSWER_KINDS: tuple[str, ...] = ("flip", "stochastic", "skip", "equal", "myopic", "distance")
+"""The answer models, one per kind of scripted teacher ('flip': the oracle and the paper's 'mistake')."""
+
+SKIP_COLUMN, EQUAL_COLUMN = -2, -1
+"""Where the probabilities of 'skip' and 'equally good' sit in `AnswerModel.probabilities`' last axis."""
+
+
+@dataclass(frozen=True)
+class AnswerModel:
+    """One teacher model with its parameters: the likelihood of every answer given phi (module docstring).
+
+    Distances are fractions of the parameter's range R, as in `hipref.teachers.models.TeacherModel`."""
+
+    kind: str = "flip"
+    """One of ANSWER_KINDS."""
+    flip: float = 0.0
+    """e, the probability that a labelled answer is flipped after the rule, in [0, 1)."""
+    beta: float = 7.0
+    """'stochastic': the rationality of P(i) = softmax(-beta d)_i."""
+    skip_distance: float = 0.3
+    """'skip': no answer when every candidate is farther than this fraction of the range."""
+    equal_margin: float = 0.05
+    """'equal': 'equally good' when the two nearest candidates' distances differ by less than this."""
+    spread: float = 0.3
+    """'myopic': the standard deviation of the teacher's picture of the truth, a fraction of the range."""
+    confusion_max: float = 0.5
+    """'distance': the probability of a wrong answer for a pair equally near the truth."""
+    confusion_width: float = 0.21
+    """'distance': the difference of closeness over which that probability falls by a factor e."""
+
+    def __post_init__(self) -> None:
+        check_choice("kind", self.kind, ANSWER_KINDS)
+        check_range("flip", self.flip, 0.0, 1.0 - 1e-9)
+        check_range("beta", self.beta, 0.0, math.inf)
+        check_range("skip_distance", self.skip_distance, 0.0, 1.0)
+        check_range("equal_margin", self.equal_margin, 0.0, 1.0)
+        check_range("spread", self.spread, 1e-9, math.inf)
+        check_range("confusion_max", self.confusion_max, 0.0, 1.0)
+        check_range("confusion_width", self.confusion_width, 1e-9, math.inf)
+
+    def probabilities(self, offsets: np.ndarray) -> np.ndarray:
+        """P(answer | phi) for offsets (..., N) = (phi_i - phi) / R: shape (..., N + 2), the N candidates,
+        then 'skip' and 'equally good'; each row sums to one."""
+        offsets = np.asarray(offsets, dtype=np.float64)
+        n = offsets.shape[-1]
+        if self.kind == "distance" and n != 2:
+            raise ValueError(f"the 'distance' answer model is for pairs only, got {n} candidates")
+        out = np.zeros((*offsets.shape[:-1], n + 2))
+        distances = np.abs(offsets)
+        out[..., :n] = _RULES[self.kind](self, offsets, distances, out)
+        return with_flip(out, self.flip)
+
+
+def with_flip(probabilities: np.ndarray, flip: float) -> np.ndarray:
+    """`AnswerModel.probabilities` of a rule, with the uniform flip e after it: the chosen candidate is
+    replaced by one of the other N - 1; 'skip' and 'equally good' stay."""
+    if flip == 0:
+        return probabilities
+    n = probabilities.shape[-1] - 2
+    labelled = probabilities[..., :n]
+    total = labelled.sum(axis=-1, keepdims=True)
+    out = probabilities.copy()
+    out[..., :n] = (1.0 - flip) * labelled + flip * (total - labelled) / (n - 1)
+    return out
+
+
+def nearest_probabilities(distances: np.ndarray) -> np.ndarray:
+    """The oracle: one for the nearest candidate, ties shared evenly."""
+    least = distances.min(axis=-1, keepdims=True)
+    nearest = distances - least <= 1e-12 + 1e-9 * least  # `equally_near` of the teachers, inlined for speed
+    return nearest / nearest.sum(axis=-1, keepdims=True)
+
+
+def _flip(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
+    return nearest_probabilities(distances)
+
+
+def _stochastic(
+    model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray
+) -> np.ndarray:
+    logits = -model.beta * distances
+    weights = np.exp(logits - logits.max(axis=-1, keepdims=True))
+    return weights / weights.sum(axis=-1, keepdims=True)
+
+
+def _skip(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
+    skipped = distances.min(axis=-1) > model.skip_distance
+    out[..., SKIP_COLUMN] = skipped
+    return nearest_probabilities(distances) * ~skipped[..., None]
+
+
+def _equal(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
+    two = np.sort(distances, axis=-1)[..., :2]
+    equal = two[..., 1] - two[..., 0] < model.equal_margin
+    out[..., EQUAL_COLUMN] = equal
+    return nearest_probabilities(distances) * ~equal[..., None]
+
+
+def _myopic(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
+    # Candidate i is chosen when the picture m falls in its Voronoi interval of the sorted candidates.
+    order = np.argsort(offsets, axis=-1)
+    ranked = np.take_along_axis(offsets, order, axis=-1)
+    bounds = (ranked[..., 1:] + ranked[..., :-1]) / 2.0
+    cdf = _normal_cdf(bounds / model.spread)
+    shape = (*cdf.shape[:-1], 1)
+    edges = np.concatenate([np.zeros(shape), cdf, np.ones(shape)], axis=-1)
+    mass = np.diff(edges, axis=-1)
+    labelled = np.empty_like(mass)
+    np.put_along_axis(labelled, order, mass, axis=-1)
+    return labelled
+
+
+def _distance(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
+    best = nearest_probabilities(distances)
+    gap = np.abs(distances[..., 0] - distances[..., 1])
+    wrong = (model.confusion_max * np.exp(-gap / model.confusion_width))[..., None]
+    return (1.0 - wrong) * best + wrong * best[..., ::-1]
+
+
+def _normal_cdf(x: np.ndarray) -> np.ndarray:
+    return np.asarray(ndtr(x))
+
+
+_RULES = {
+    "flip": _flip,
+    "stochastic": _stochastic,
+    "skip": _skip,
+    "equal": _equal,
+    "myopic": _myopic,
+    "distance": _distance,
+}
+
+
+def told(teacher: TeacherModel, noise: float) -> AnswerModel:
+    """The answer model of a scripted teacher (`hipref.teachers.models`) flipping at `noise`: what a learner
+    'told the true model' uses. The myopic teacher's picture has the stationary spread of its memory,
+    glimpse_noise sqrt((1 - memory) / (1 + memory))."""
+    check_range("noise", noise, 0.0, 1.0 - 1e-9)
+    spread = teacher.glimpse_noise * math.sqrt((1.0 - teacher.memory) / (1.0 + teacher.memory))
+    own = {
+        "oracle": {"kind": "flip"},
+        "mistake": {"kind": "flip"},
+        "stochastic": {"kind": "stochastic", "beta": teacher.beta},
+        "skip": {"kind": "skip", "skip_distance": teacher.skip_distance},
+        "equal": {"kind": "equal", "equal_margin": teacher.equal_margin},
+        "myopic": {"kind": "myopic", "spread": max(spread, 1e-9)},
+        "distance": {
+            "kind": "distance",
+            "confusion_max": teacher.confusion_max,
+            "confusion_width": teacher.confusion_width,
+        },
+    }[teacher.kind]
+    return AnswerModel(flip=noise, **own)  # type: ignore[arg-type]
+
+
+FLIP_GRID: tuple[float, ...] = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45)
+"""The flip rates a learner not told the model weighs (a uniform prior over them)."""
+
+
+def model_family() -> tuple[AnswerModel, ...]:
+    """The hypotheses of a learner that is not told the teacher's model: every kind over a grid of its
+    parameters, each weighed by its marginal likelihood (`hipref.learners.bayes.PreferencePosterior`).
+
+    The grids span the teachers' plausible range without singling out the scripted teachers' defaults:
+    flip rates of FLIP_GRID; rationalities beta 2-64 (log-spaced); pictures spread 0.05-0.8 of the range;
+    confusion up to 0.3-0.5 over widths 0.05-0.4; skip distances and equal margins on small grids, each with
+    flips of 0-0.3 on top."""
+    base = AnswerModel()
+    models = [replace(base, kind="flip", flip=e) for e in FLIP_GRID]
+    models += [replace(base, kind="stochastic", beta=b) for b in (2.0, 4.0, 8.0, 16.0, 32.0, 64.0)]
+    models += [replace(base, kind="myopic", spread=s) for s in (0.05, 0.1, 0.2, 0.4, 0.8)]
+    models += [
+        replace(base, kind="distance", confusion_max=c, confusion_width=w)
+        for c in (0.3, 0.5)
+        for w in (0.05, 0.1, 0.2, 0.4)
+    ]
+    models += [
+        replace(base, kind="skip", skip_distance=s, flip=e)
+        for s in (0.1, 0.2, 0.3, 0.4)
+        for e in (0.0, 0.1, 0.3)
+    ]
+    models += [
+        replace(base, kind="equal", equal_margin=m, flip=e)
+        for m in (0.025, 0.05, 0.1)
+        for e in (0.0, 0.1, 0.3)
+    ]
+    return tuple(models)

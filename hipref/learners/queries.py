@@ -1,0 +1,134 @@
+"""Which pair to ask next: query rules over a learner's belief about phi (beyond the paper; APReL's set).
+
+A rule sees the learner's belief as weights over hypothetical truths (cells) under one or more answer
+models (`hipref.learners.answer_models`) and picks two candidates of Phi:
+
+- 'uniform': two distinct candidates drawn uniformly (Algorithm 2; the learners draw these themselves, so
+  the paper's studies keep their draws);
+- 'thompson': two draws of phi from the belief, each rounded to its nearest candidate (redrawn while equal);
+- 'information_gain': the pair maximising the mutual information between its answer and phi,
+  I = H(sum_c w_c P(y | c)) - sum_c w_c H(P(y | c)): under the flip model, probabilistic bisection (the
+  pair whose midpoint is the belief's median); under the distance model, pairs a teacher can tell apart;
+- 'volume_removal': APReL's expected volume removed, 1 - sum_y P(y)^2 (Sadigh et al. 2017), which ignores
+  how noisy each answer is.
+
+Ties (many pairs share a midpoint) are broken uniformly with the learner's rng. The likelihood of every
+pair at every cell is computed once per (candidates, cells, model) and kept (`pair_table`), so a choice
+costs a few matrix-vector products.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+
+import numpy as np
+
+from hipref.learners.answer_models import AnswerModel
+from hipref.learners.sysid import CandidateSet
+from hipref.validation import check_choice
+
+QUERY_RULES: tuple[str, ...] = ("uniform", "thompson", "information_gain", "volume_removal")
+"""The query rules; every learner takes one ('uniform', Algorithm 2's, by default)."""
+
+CHOSEN: tuple[str, ...] = QUERY_RULES[1:]
+"""The rules that choose from the belief (pairs only)."""
+
+TIE = 1e-9
+"""Scores within this of the best count as equal, and one of them is drawn."""
+
+
+def all_pairs(size: int) -> np.ndarray:
+    """Every pair (i, j), i < j, of `size` candidates: shape (size (size - 1) / 2, 2)."""
+    first, second = np.triu_indices(size, k=1)
+    return np.stack([first, second], axis=1)
+
+
+class PairTable:
+    """P(answer | cell) of every pair of Phi under one answer model, and its entropy, computed once."""
+
+    def __init__(self, candidates: CandidateSet, cells: np.ndarray, model: AnswerModel) -> None:
+        values = candidates.values
+        self.pairs = all_pairs(values.size)
+        offsets = (values[self.pairs][:, None, :] - cells[None, :, None]) / (candidates.high - candidates.low)
+        probs = model.probabilities(offsets)  # (P, C, 4): first, second, skip, equal
+        kept = probs.any(axis=(0, 1))
+        self.outcomes = np.flatnonzero(kept)
+        """Which of the four answers (first, second, skip, equal) the model can give."""
+        self.probs = np.ascontiguousarray(probs[..., kept].transpose(0, 2, 1))  # (P, outcomes, C)
+        self.entropy = _entropy(probs[..., kept], axis=-1)  # (P, C)
+
+
+@functools.lru_cache(maxsize=256)
+def _table(candidates: CandidateSet, cells: bytes, model: AnswerModel) -> PairTable:
+    return PairTable(candidates, np.frombuffer(cells, dtype=np.float64), model)
+
+
+def pair_table(candidates: CandidateSet, cells: np.ndarray, model: AnswerModel) -> PairTable:
+    """The table of (candidates, cells, model), built on first use and kept for the process."""
+    return _table(candidates, np.ascontiguousarray(cells, dtype=np.float64).tobytes(), model)
+
+
+def _entropy(p: np.ndarray, axis: int) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(p > 0, -p * np.log(p), 0.0)
+    return terms.sum(axis=axis)
+
+
+def pair_scores(
+    rule: str, candidates: CandidateSet, cells: np.ndarray, beliefs: Sequence[tuple[AnswerModel, np.ndarray]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair's score under `rule` ('information_gain' or 'volume_removal'), for a belief given as
+    (answer model, weights over `cells`) terms whose weights sum to one over all terms: (pairs, scores)."""
+    check_choice("rule", rule, ("information_gain", "volume_removal"))
+    mixture: np.ndarray | None = None
+    conditional = np.zeros(0)
+    pairs = all_pairs(candidates.size)
+    for model, weights in beliefs:
+        table = pair_table(candidates, cells, model)
+        predicted = table.probs @ weights  # (P, outcomes)
+        padded = np.zeros((predicted.shape[0], 4))
+        padded[:, table.outcomes] = predicted
+        mixture = padded if mixture is None else mixture + padded
+        term = table.entropy @ weights
+        conditional = term if conditional.size == 0 else conditional + term
+    assert mixture is not None
+    if rule == "volume_removal":
+        return pairs, 1.0 - (mixture**2).sum(axis=1)
+    return pairs, _entropy(mixture, axis=1) - conditional
+
+
+def choose_pair(
+    rule: str,
+    candidates: CandidateSet,
+    cells: np.ndarray,
+    beliefs: Sequence[tuple[AnswerModel, np.ndarray]],
+    rng: np.random.Generator,
+) -> tuple[int, int]:
+    """Indices into Phi of the pair `rule` (one of CHOSEN) asks about next."""
+    check_choice("rule", rule, CHOSEN)
+    if rule == "thompson":
+        return _thompson(candidates, cells, beliefs, rng)
+    pairs, scores = pair_scores(rule, candidates, cells, beliefs)
+    best = np.flatnonzero(scores >= scores.max() - TIE)
+    chosen = pairs[best[rng.integers(best.size)]]
+    return int(chosen[0]), int(chosen[1])
+
+
+def _thompson(
+    candidates: CandidateSet,
+    cells: np.ndarray,
+    beliefs: Sequence[tuple[AnswerModel, np.ndarray]],
+    rng: np.random.Generator,
+    tries: int = 20,
+) -> tuple[int, int]:
+    weights = np.sum([w for _, w in beliefs], axis=0)
+    weights = weights / weights.sum()
+    values = candidates.values
+    first = int(np.abs(values - cells[rng.choice(cells.size, p=weights)]).argmin())
+    for _ in range(tries):
+        second = int(np.abs(values - cells[rng.choice(cells.size, p=weights)]).argmin())
+        if second != first:
+            return first, second
+    # A belief so sharp that both draws round alike: ask about the nearest neighbour.
+    return first, first + 1 if first + 1 < values.size else first - 1

@@ -1,0 +1,253 @@
+"""The Bayesian preference learner, its answer models and the query rules: properties that fail when the
+algebra is wrong."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hipref.learners.answer_models import ANSWER_KINDS, AnswerModel, model_family, told
+from hipref.learners.bayes import BayesConfig, BayesLearner, PreferencePosterior, answer_column
+from hipref.learners.pesi import PESIConfig, PESILearner
+from hipref.learners.queries import choose_pair, pair_scores
+from hipref.learners.sysid import CandidateSet, SIModel
+from hipref.teachers.models import TeacherModel
+from hipref.teachers.preference import EQUAL, SKIP, PreferenceQuery, ScriptedPreferenceTeacher
+
+SMALL = CandidateSet(low=0.0, high=1.0, resolution=0.25)  # 5 candidates
+GRID = CandidateSet(low=0.5, high=0.9, resolution=0.01)
+
+
+def _models() -> list[AnswerModel]:
+    return [
+        AnswerModel("flip", flip=0.2),
+        AnswerModel("stochastic", beta=5.0, flip=0.1),
+        AnswerModel("skip", skip_distance=0.3, flip=0.1),
+        AnswerModel("equal", equal_margin=0.1),
+        AnswerModel("myopic", spread=0.2),
+        AnswerModel("distance", confusion_max=0.4, confusion_width=0.1),
+    ]
+
+
+@pytest.mark.parametrize("model", _models(), ids=lambda m: m.kind)
+def test_every_answer_models_probabilities_sum_to_one_over_labels_skip_and_equal(model: AnswerModel) -> None:
+    rng = np.random.default_rng(0)
+    n = 2 if model.kind == "distance" else 3
+    offsets = rng.uniform(-1, 1, size=(200, n))
+    probs = model.probabilities(offsets)
+    assert probs.shape == (200, n + 2)
+    assert np.all(probs >= 0)
+    np.testing.assert_allclose(probs.sum(axis=1), 1.0, atol=1e-12)
+
+
+def test_the_posterior_is_the_normalised_product_of_the_answers_likelihoods() -> None:
+    models = (AnswerModel("flip", flip=0.1), AnswerModel("stochastic", beta=4.0))
+    posterior = PreferencePosterior(SMALL, models, refine=2)
+    answers = [((0.0, 1.0), 0), ((0.25, 0.75), 1), ((0.5, 1.0), 0), ((0.0, 0.5), 1)]
+    for candidates, column in answers:
+        posterior.update(candidates, column)
+    # Brute force: for each model and point, the product of each answer's probability, priors 1/2 each.
+    brute = np.ones((2, posterior.cells.size)) / 2
+    for m, model in enumerate(models):
+        for c, phi in enumerate(posterior.cells):
+            for candidates, column in answers:
+                offsets = (np.array(candidates) - phi) / (SMALL.high - SMALL.low)
+                brute[m, c] *= model.probabilities(offsets[None, :])[0, column]
+    np.testing.assert_allclose(posterior.joint(), brute / brute.sum(), rtol=1e-10)
+
+
+def test_with_no_flips_the_support_is_exactly_what_the_answers_allow() -> None:
+    posterior = PreferencePosterior(GRID, (AnswerModel("flip", flip=0.0),))
+    truth = 0.6731
+    rng = np.random.default_rng(3)
+    low, high = GRID.low, GRID.high
+    for _ in range(25):
+        a, b = rng.choice(GRID.values, size=2, replace=False)
+        preferred, other = (a, b) if abs(a - truth) < abs(b - truth) else (b, a)
+        posterior.update((a, b), 0 if preferred == a else 1)
+        # The truth is on the preferred candidate's side of the midpoint.
+        midpoint = (a + b) / 2
+        if preferred < other:
+            high = min(high, midpoint)
+        else:
+            low = max(low, midpoint)
+    weights = posterior.phi()
+    support = posterior.cells[weights > 0]
+    inside = (posterior.cells > low + 1e-12) & (posterior.cells < high - 1e-12)
+    assert low < truth < high
+    assert support.min() >= low - 1e-12 and support.max() <= high + 1e-12
+    assert np.all(weights[inside] > 0), "every point strictly inside the allowed interval keeps its mass"
+    # And uniform on it: the flip model with e = 0 cannot tell apart points the answers do not separate.
+    np.testing.assert_allclose(weights[inside], weights[inside][0])
+
+
+def test_information_gain_is_largest_for_a_pair_whose_midpoint_is_the_posterior_median() -> None:
+    posterior = PreferencePosterior(GRID, (AnswerModel("flip", flip=0.1),))
+    for candidates, column in [((0.5, 0.9), 1), ((0.6, 0.9), 1), ((0.8, 0.6), 1)]:
+        posterior.update(candidates, column)
+    pairs, scores = pair_scores("information_gain", GRID, posterior.query_points, posterior.query_beliefs())
+    weights = posterior.phi()
+    median = posterior.cells[np.searchsorted(np.cumsum(weights), 0.5)]
+    best = pairs[int(np.argmax(scores))]
+    midpoint = GRID.values[best].mean()
+    assert abs(midpoint - median) <= GRID.resolution, (midpoint, median)
+    # A pair whose midpoint is far from the median tells less.
+    far = np.flatnonzero(np.abs(GRID.values[pairs].mean(axis=1) - median) > 0.1)
+    assert scores[far].max() < scores.max() - 0.05
+
+
+def test_a_cant_tell_answer_moves_mass_towards_the_pairs_midpoint() -> None:
+    posterior = PreferencePosterior(GRID, (AnswerModel("equal", equal_margin=0.05),))
+    before = posterior.phi()
+    posterior.update((0.6, 0.8), answer_column(EQUAL, 2))
+    after = posterior.phi()
+    near = np.abs(posterior.cells - 0.7) <= 0.01
+    far = np.abs(posterior.cells - 0.7) > 0.05
+    assert after[near].sum() > before[near].sum()
+    assert after[far].sum() == 0.0
+
+
+def test_a_skipped_answer_says_the_truth_is_far_from_both_candidates() -> None:
+    posterior = PreferencePosterior(GRID, (AnswerModel("skip", skip_distance=0.2),))
+    posterior.update((0.85, 0.9), answer_column(SKIP, 2))
+    support = posterior.cells[posterior.phi() > 0]
+    assert support.max() < 0.85 - 0.2 * 0.4 + 1e-9
+
+
+def test_an_impossible_answer_under_a_teacher_that_never_errs_is_refused_by_name() -> None:
+    posterior = PreferencePosterior(GRID, (AnswerModel("flip", flip=0.0),))
+    posterior.update((0.5, 0.9), 0)  # truth below 0.7
+    with pytest.raises(ValueError, match="impossible under every answer model"):
+        posterior.update((0.6, 0.9), 1)  # truth above 0.75
+
+
+def test_uniform_queries_are_pesis_queries_from_the_same_seed() -> None:
+    model = SIModel(4, GRID)
+    pesi = PESILearner(model, PESIConfig(), seed=11)
+    bayes = BayesLearner(GRID, BayesConfig(), seed=11)
+    for _ in range(5):
+        # observe draws from the rng as a replayed clip does, so the streams stay in step.
+        def observe(phi: float, rng: np.random.Generator) -> np.ndarray:
+            return np.full(model.input_dim, phi + rng.random())
+
+        assert pesi.ask(observe).candidates == bayes.ask(observe).candidates
+
+
+def test_perfect_answers_with_chosen_queries_bisect_to_one_grid_step() -> None:
+    for truth in (0.537, 0.70, 0.861):
+        learner = BayesLearner(GRID, BayesConfig(query_rule="information_gain"), seed=2)
+        teacher = ScriptedPreferenceTeacher(truth, 0.0, np.random.default_rng(0), scale=0.4)
+        for _ in range(8):
+            query = learner.ask()
+            learner.tell(query, teacher.answer(query))
+        assert abs(learner.estimate() - truth) <= GRID.resolution
+
+
+def test_told_maps_each_scripted_teacher_to_its_answer_model() -> None:
+    assert told(TeacherModel("mistake"), 0.2) == AnswerModel("flip", flip=0.2)
+    assert told(TeacherModel("oracle"), 0.0).kind == "flip"
+    myopic = told(TeacherModel("myopic", memory=0.9, glimpse_noise=1.3), 0.0)
+    assert myopic.spread == pytest.approx(1.3 * np.sqrt(0.1 / 1.9))
+    assert {told(TeacherModel(k), 0.0).kind for k in ("stochastic", "skip", "equal", "distance")} <= set(
+        ANSWER_KINDS
+    )
+
+
+def test_the_model_family_covers_every_kind_and_its_flip_rates() -> None:
+    family = model_family()
+    assert {m.kind for m in family} == set(ANSWER_KINDS)
+    assert len(set(family)) == len(family)
+    assert {m.flip for m in family if m.kind == "flip"} >= {0.0, 0.2, 0.4}
+
+
+def test_marginal_likelihood_prefers_the_teacher_that_answered() -> None:
+    learner = BayesLearner(GRID, BayesConfig(), seed=4)
+    teacher = ScriptedPreferenceTeacher(0.66, 0.0, np.random.default_rng(1), TeacherModel("skip"), scale=0.4)
+    for _ in range(60):
+        query = learner.ask()
+        learner.tell(query, teacher.answer(query))
+    kinds = learner.posterior.model_posterior()
+    assert max(kinds, key=kinds.__getitem__) == "skip"
+
+
+def test_the_filter_flags_the_flipped_answers() -> None:
+    # Uniform pairs: most are far from the truth, where a flip contradicts the others plainly.
+    learner = BayesLearner(GRID, BayesConfig(), seed=0)
+    teacher = ScriptedPreferenceTeacher(0.74, 0.2, np.random.default_rng(0), scale=0.4)
+    for _ in range(80):
+        query = learner.ask()
+        learner.tell(query, teacher.answer(query))
+    precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
+    assert sum(teacher.wrong_labels) >= 10
+    assert precision > 0.85 and recall > 0.85
+
+
+def test_expected_success_estimate_avoids_the_side_that_fails() -> None:
+    # A curve that fails for any estimate below the truth; the answers put the truth in [0.60, 0.62]. Only
+    # an estimate in [0.62, 0.63] succeeds whatever the truth there: above the posterior median, 0.61.
+    curve = (np.array([-0.001, 0.0, 0.03, 0.031]), np.array([0.0, 1.0, 1.0, 0.0]))
+    exact = AnswerModel("flip", flip=0.0)
+    learners = [
+        BayesLearner(GRID, BayesConfig(answer_model=exact, estimate=estimate), seed=0, success_curve=curve)
+        for estimate in ("expected_success", "median")
+    ]
+    for learner in learners:
+        learner.tell(PreferenceQuery((0.5, 0.7), features=np.zeros(0)), -1)  # truth above 0.60
+        learner.tell(PreferenceQuery((0.6, 0.64), features=np.zeros(0)), 1)  # truth below 0.62
+    best, median = (learner.estimate() for learner in learners)
+    assert median == pytest.approx(0.61)
+    assert 0.62 - 1e-9 <= best <= 0.63 + 1e-9
+
+
+@pytest.mark.parametrize("rule", ["thompson", "information_gain", "volume_removal"])
+def test_pesi_asks_distinct_candidates_of_phi_under_every_chosen_rule(rule: str) -> None:
+    model = SIModel(4, GRID)
+    learner = PESILearner(model, PESIConfig(candidate_sampling=rule), seed=1)
+    query = learner.ask(lambda phi, rng: np.zeros(model.input_dim))
+    a, b = query.candidates
+    assert a != b and {GRID.index_of(a), GRID.index_of(b)} <= set(range(GRID.size))
+
+
+@pytest.mark.parametrize(
+    ("make", "match"),
+    [
+        (lambda: BayesConfig(query_rule="bisect"), "query_rule"),
+        (lambda: BayesConfig(query_rule="information_gain", n_candidates=3), "n_candidates must be 2"),
+        (lambda: BayesConfig(estimate="mode"), "estimate"),
+        (lambda: BayesConfig(prior="osi"), "prior"),
+        (lambda: AnswerModel("flip", flip=1.0), "flip"),
+        (lambda: AnswerModel("guess"), "kind"),
+        (lambda: BayesLearner(GRID, BayesConfig(estimate="expected_success")), "success_curve"),
+        (lambda: BayesLearner(GRID, BayesConfig(prior="si")), "si_model"),
+        (lambda: PESIConfig(candidate_sampling="thompson", n_candidates=3), "n_candidates must be 2"),
+    ],
+)
+def test_bad_options_are_refused_by_name(make, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_a_chosen_pair_is_drawn_among_equally_informative_ones() -> None:
+    posterior = PreferencePosterior(GRID, (AnswerModel("flip", flip=0.0),))
+    pairs = {
+        choose_pair(
+            "information_gain",
+            GRID,
+            posterior.query_points,
+            posterior.query_beliefs(),
+            np.random.default_rng(seed),
+        )
+        for seed in range(20)
+    }
+    assert len(pairs) > 1
+    for i, j in pairs:
+        assert abs((GRID.values[i] + GRID.values[j]) / 2 - 0.7) <= GRID.resolution
+
+
+def test_answer_columns_of_every_label() -> None:
+    assert answer_column(1, 2) == 0 and answer_column(-1, 2) == 1
+    assert answer_column(SKIP, 2) == 2 and answer_column(EQUAL, 2) == 3
+    assert answer_column(np.array([-0.5, 1.0, -0.5]), 3) == 1
+    for bad in (0, 2, np.array([1.0, 1.0])):
+        with pytest.raises(ValueError):
+            answer_column(bad, 2)
