@@ -74,10 +74,11 @@ pytest: install
 	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto tests
 
 # Two notebooks at a time, each in its own kernel (a notebook's cells stay in order on one worker): their
-# kernels start, import and plot while the other's sweep computes.
+# kernels start, import and plot while the other's sweep computes. The kernels listen on sockets of their own
+# (tests/nbval_kernel.py), so two starting together never take the same port.
 nbval: install
-	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=2 --dist=loadfile --nbval-lax $(NOTEBOOKS) \
-		--nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
+	$(TEMP_RESULTS) $(PY) -m pytest -p tests.nbval_kernel --numprocesses=2 --dist=loadfile --nbval-lax \
+		$(NOTEBOOKS) --nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
 
 lab: install
 	$(VENV)/bin/jupyter lab --ServerApp.allow_root=True notebooks
