@@ -1,6 +1,6 @@
 """Execute one notebook with a profile's parameters: what `make reproduce` and `make notebooks` run for each.
 
-    python -m hipref.run_notebook -f params/quick/06_noise_estimation.yaml [--committed] \\
+    python -m hipref.run_notebook -f params/quick/06_noise_estimation.yaml [-p repetitions 2] [--committed] \\
         notebooks/06_noise_estimation.ipynb results/quick/notebooks/06_noise_estimation.ipynb
 
 - papermill executes into a temporary file beside the output, which replaces the output only once every cell
@@ -181,14 +181,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("notebook", type=Path, help="the notebook to execute")
     parser.add_argument("output", type=Path, help="where the executed notebook goes (may be the notebook)")
     parser.add_argument("-f", "--parameters", type=Path, help="YAML file of parameters (params/<profile>/)")
+    parser.add_argument("-p", "--parameter", nargs=2, action="append", default=[], metavar=("NAME", "VALUE"),
+                        help="a parameter, its value read as YAML; overrides the file's")
     parser.add_argument("--committed", action="store_true",
                         help="write it as committed: no injected-parameters cell, cells numbered from 1")
     parser.add_argument("--kernel", default=KERNEL, help=f"Jupyter kernel name (default {KERNEL})")
     parser.add_argument("--no-progress-bar", action="store_true", help="no progress bar on stderr")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, _terminate)
-    execute(args.notebook, args.output, load_parameters(args.parameters), committed=args.committed,
-            kernel=args.kernel, progress_bar=not args.no_progress_bar)
+    overrides = {name: yaml.safe_load(value) for name, value in args.parameter}
+    parameters = load_parameters(args.parameters) | overrides
+    execute(args.notebook, args.output, parameters, committed=args.committed, kernel=args.kernel,
+            progress_bar=not args.no_progress_bar)
     return 0
 
 
