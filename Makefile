@@ -24,14 +24,15 @@ endif
 TEMP_RESULTS = tmp=$$(mktemp -d -t hipref-results.XXXXXX) && trap 'rm -rf "$$tmp"' EXIT && \
 	trap 'exit 130' INT TERM && HIPREF_RESULTS_DIR=$$tmp
 
-# $(call execute,PROFILE,RESULTS DIR,OUTPUT DIR,JOBS): run every notebook through papermill with the
-# profile's parameters, JOBS at a time, its results written to RESULTS DIR and the executed notebook to OUTPUT
-# DIR; the first failure stops the rest.
+# $(call execute,PROFILE,RESULTS DIR,OUTPUT DIR,JOBS[,--committed]): run every notebook through
+# hipref/run_notebook.py with the profile's parameters, JOBS at a time, its results written to RESULTS DIR and
+# the executed notebook to OUTPUT DIR, replaced only once it has run through and with no absolute path in its
+# outputs; --committed also removes papermill's injected-parameters cell. The first failure stops the rest.
 define execute
 	mkdir -p $(3)
 	printf '%s\n' $(NOTEBOOKS) | xargs -P $(4) -I NOTEBOOK sh -c '\
 		name=$$(basename NOTEBOOK .ipynb); \
-		HIPREF_RESULTS_DIR=$(abspath $(2)) $(VENV)/bin/papermill --kernel hipref --cwd notebooks \
+		HIPREF_RESULTS_DIR=$(abspath $(2)) $(PY) -m hipref.run_notebook $(5) \
 			-f params/$(1)/$$name.yaml NOTEBOOK $(3)/$$name.ipynb || exit 255'
 endef
 
@@ -59,9 +60,10 @@ $(VENV)/.installed: environment.txt pyproject.toml
 reproduce: install
 	$(call execute,$(PROFILE),$(RESULTS),$(RESULTS)/notebooks,$(JOBS))
 
-# Re-execute the committed notebooks in place at the quick profile (what nbval checks); results to results/quick/.
+# Re-execute the committed notebooks in place at the quick profile (what nbval checks), without papermill's
+# injected-parameters cell: the parameters cell's defaults are the quick profile. Results to results/quick/.
 notebooks: install
-	$(call execute,quick,results/quick,notebooks,2)
+	$(call execute,quick,results/quick,notebooks,2,--committed)
 
 # In this order; `make nbval NOTEBOOKS=notebooks/06_noise_estimation.ipynb` checks a single notebook.
 test: lint pytest nbval
@@ -74,10 +76,11 @@ pytest: install
 	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto tests
 
 # Two notebooks at a time, each in its own kernel (a notebook's cells stay in order on one worker): their
-# kernels start, import and plot while the other's sweep computes.
+# kernels start, import and plot while the other's sweep computes. The kernels listen on sockets of their own
+# (tests/nbval_kernel.py), so two starting together never take the same port.
 nbval: install
-	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=2 --dist=loadfile --nbval-lax $(NOTEBOOKS) \
-		--nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
+	$(TEMP_RESULTS) $(PY) -m pytest -p tests.nbval_kernel --numprocesses=2 --dist=loadfile --nbval-lax \
+		$(NOTEBOOKS) --nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
 
 lab: install
 	$(VENV)/bin/jupyter lab --ServerApp.allow_root=True notebooks

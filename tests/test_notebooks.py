@@ -6,6 +6,7 @@ import ast
 import dataclasses
 import importlib
 import json
+import re
 import typing
 from pathlib import Path
 from typing import Any
@@ -98,6 +99,23 @@ def config_defaults(*sources: Source) -> dict[str, Any]:
     return found
 
 
+ABSOLUTE_PATH = re.compile(r"(?<![\w.~$:/<>-])/(?:[\w.+@-]+/)+[\w.+@-]*")
+"""An absolute POSIX path of two parts or more (`/work/main/results`, `/tmp/x`), not a URL's path, an HTML
+closing tag or a ratio (`1/4`, `cell/s`)."""
+
+
+def output_texts(notebook: Path) -> list[str]:
+    """Every text of every output (streams, errors, text data; not the base64 of images)."""
+    found: list[str] = []
+    for cell in json.loads(notebook.read_text())["cells"]:
+        for output in cell.get("outputs", []):
+            found.append("".join(output.get("text", "")))
+            found.extend([output.get("evalue", ""), *output.get("traceback", [])])
+            found.extend("".join(value) for media, value in output.get("data", {}).items()
+                         if media.startswith("text/") or media == "image/svg+xml")
+    return found
+
+
 def test_there_are_notebooks() -> None:
     assert len(NOTEBOOKS) >= 5
 
@@ -164,3 +182,24 @@ def test_parameters_agree_with_the_config_and_the_quick_profile(notebook: Path) 
         assert quick[name] == default, (
             f"{notebook.stem}: quick profile {name}={quick[name]!r}, default {default!r}"
         )
+
+
+@pytest.mark.parametrize("notebook", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_is_committed_as_a_person_runs_it(notebook: Path) -> None:
+    # `make notebooks` removes papermill's cell of injected parameters: in JupyterLab it would override an
+    # edit of the parameters cell. The parameters cell's defaults are the quick profile it ran with.
+    tags = [c.get("metadata", {}).get("tags", []) for c in json.loads(notebook.read_text())["cells"]]
+    injected = [i for i, cell_tags in enumerate(tags) if "injected-parameters" in cell_tags]
+    assert not injected, (
+        f"{notebook.name} has papermill's injected-parameters cell (cell {injected[0]}); re-execute it with "
+        f"`make notebooks NOTEBOOKS={notebook.relative_to(ROOT)}`"
+    )
+
+
+@pytest.mark.parametrize("notebook", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_names_no_absolute_path(notebook: Path) -> None:
+    found = sorted({path for text in output_texts(notebook) for path in ABSOLUTE_PATH.findall(text)})
+    assert not found, f"{notebook.name}: outputs name absolute paths of a machine: {found[:5]}"
+    recorded = json.loads(notebook.read_text())["metadata"].get("papermill", {})
+    for key in ("input_path", "output_path"):
+        assert not str(recorded.get(key, "")).startswith("/"), f"{notebook.name}: {key} {recorded[key]!r}"

@@ -2,9 +2,9 @@
 
 The notebooks write through `hipref.results.results_dir()`: `make test` points `HIPREF_RESULTS_DIR` at a
 temporary directory and `make reproduce PROFILE=quick` at the ignored `results/quick/`, so only the full
-profile rewrites the committed `results/`. The test executes notebook 06 end-to-end through papermill with the
-environment it was started in (as `make test` starts it) at a tiny scale, and compares the checkout before and
-after.
+profile rewrites the committed `results/`. The test executes notebook 06 end-to-end as `make reproduce` does
+(`hipref/run_notebook.py`, papermill) with the environment it was started in (as `make test` starts it) at a
+tiny scale, and compares the checkout before and after.
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ def test_executing_a_notebook_changes_no_tracked_file(tmp_path: Path) -> None:
     before = checkout_state()
     tiny = [arg for name, value in TINY.items() for arg in ("-p", name, str(value))]
     subprocess.run(
-        [sys.executable, "-m", "papermill", "--kernel", "hipref", "--cwd", "notebooks", "--no-progress-bar",
+        [sys.executable, "-m", "hipref.run_notebook", "--no-progress-bar",
          "-f", f"params/quick/{NOTEBOOK.stem}.yaml", *tiny, str(NOTEBOOK), str(tmp_path / NOTEBOOK.name)],
         cwd=ROOT, env=env, check=True,
     )
