@@ -154,8 +154,12 @@ def execute(
     partial = temporary_beside(output)
     try:
         executed = papermill.execute_notebook(
-            str(notebook), str(partial), parameters=dict(parameters), kernel_name=kernel,
-            cwd=str(notebook.parent), progress_bar=progress_bar,
+            str(notebook),
+            str(partial),
+            parameters=dict(parameters),
+            kernel_name=kernel,
+            cwd=str(notebook.parent),
+            progress_bar=progress_bar,
             kernel_manager_class=f"{IPCKernelManager.__module__}.{IPCKernelManager.__name__}",
         )
         if committed:
@@ -181,18 +185,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("notebook", type=Path, help="the notebook to execute")
     parser.add_argument("output", type=Path, help="where the executed notebook goes (may be the notebook)")
     parser.add_argument("-f", "--parameters", type=Path, help="YAML file of parameters (params/<profile>/)")
-    parser.add_argument("-p", "--parameter", nargs=2, action="append", default=[], metavar=("NAME", "VALUE"),
-                        help="a parameter, its value read as YAML; overrides the file's")
-    parser.add_argument("--committed", action="store_true",
-                        help="write it as committed: no injected-parameters cell, cells numbered from 1")
+    parser.add_argument(
+        "-p",
+        "--parameter",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("NAME", "VALUE"),
+        help="a parameter, its value read as YAML; overrides the file's",
+    )
+    parser.add_argument(
+        "--committed",
+        action="store_true",
+        help="write it as committed: no injected-parameters cell, cells numbered from 1",
+    )
     parser.add_argument("--kernel", default=KERNEL, help=f"Jupyter kernel name (default {KERNEL})")
     parser.add_argument("--no-progress-bar", action="store_true", help="no progress bar on stderr")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, _terminate)
     overrides = {name: yaml.safe_load(value) for name, value in args.parameter}
     parameters = load_parameters(args.parameters) | overrides
-    execute(args.notebook, args.output, parameters, committed=args.committed, kernel=args.kernel,
-            progress_bar=not args.no_progress_bar)
+    execute(
+        args.notebook,
+        args.output,
+        parameters,
+        committed=args.committed,
+        kernel=args.kernel,
+        progress_bar=not args.no_progress_bar,
+    )
     return 0
 
 

@@ -328,6 +328,12 @@ def within(difference: Difference, low: float, high: float) -> str:
     return "partly" if low <= difference.mean <= high else "no"
 
 
+def at_most(value: float, limit: float) -> str:
+    """For counts read off every environment at once (answers needed in 90 % of them): 'yes' if `value`
+    is at most `limit`, 'no' otherwise or when it was never reached (NaN)."""
+    return "yes" if np.isfinite(value) and value <= limit else "no"
+
+
 def combine(verdicts: Sequence[str]) -> str:
     """One verdict for a claim tested several ways: 'yes' if all hold, 'no' if none does, else 'partly'."""
     if not verdicts:

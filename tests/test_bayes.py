@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
 from hipref.learners.answer_models import ANSWER_KINDS, AnswerModel, model_family, told
 from hipref.learners.bayes import BayesConfig, BayesLearner, PreferencePosterior, answer_column
@@ -188,7 +189,9 @@ def test_expected_success_estimate_avoids_the_side_that_fails() -> None:
     curve = (np.array([-0.001, 0.0, 0.03, 0.031]), np.array([0.0, 1.0, 1.0, 0.0]))
     exact = AnswerModel("flip", flip=0.0)
     learners = [
-        BayesLearner(GRID, BayesConfig(answer_model=exact, estimate=estimate), seed=0, success_curve=curve)
+        BayesLearner(
+            GRID, BayesConfig(answer_models=(exact,), estimate=estimate), seed=0, success_curve=curve
+        )
         for estimate in ("expected_success", "median")
     ]
     for learner in learners:
@@ -251,3 +254,19 @@ def test_answer_columns_of_every_label() -> None:
     for bad in (0, 2, np.array([1.0, 1.0])):
         with pytest.raises(ValueError):
             answer_column(bad, 2)
+
+
+def test_with_sis_prior_and_no_answer_the_posterior_is_sis_distribution() -> None:
+    model = SIModel(4, GRID, seed=3)
+    learner = BayesLearner(GRID, BayesConfig(prior="si"), seed=0, si_model=model)
+    tau = np.array([0.1, -0.3, 0.7, 0.2])
+    weights = learner.distribution(tau)
+    nearest = np.rint((learner.posterior.cells - GRID.low) / GRID.resolution).astype(int)
+    per_candidate = np.bincount(nearest, weights=weights, minlength=GRID.size)
+    with torch.no_grad():
+        expected = model.distribution(torch.as_tensor(tau, dtype=torch.float32)).double().numpy()
+    np.testing.assert_allclose(per_candidate, expected, rtol=1e-6)
+    # An answer then reweighs SI's belief: the truth below 0.7 takes all the mass of a never-erring teacher.
+    told = BayesLearner(GRID, BayesConfig(prior="si", answer_models=(AnswerModel(),)), seed=0, si_model=model)
+    told.tell(PreferenceQuery((0.6, 0.8), features=np.zeros(0)), 1)
+    assert told.distribution(tau)[told.posterior.cells > 0.7 + 1e-9].sum() == 0.0

@@ -111,8 +111,11 @@ def output_texts(notebook: Path) -> list[str]:
         for output in cell.get("outputs", []):
             found.append("".join(output.get("text", "")))
             found.extend([output.get("evalue", ""), *output.get("traceback", [])])
-            found.extend("".join(value) for media, value in output.get("data", {}).items()
-                         if media.startswith("text/") or media == "image/svg+xml")
+            found.extend(
+                "".join(value)
+                for media, value in output.get("data", {}).items()
+                if media.startswith("text/") or media == "image/svg+xml"
+            )
     return found
 
 

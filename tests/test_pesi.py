@@ -111,9 +111,7 @@ def test_eq3_moves_weight_to_the_preferred_candidate_without_changing_the_total(
 
 def test_standard_ce_is_cross_entropy_among_the_queried_candidates() -> None:
     logits = torch.log(torch.tensor([[0.1, 0.3, 0.05, 0.55]]))
-    loss = standard_ce_loss(
-        log_probs(logits, torch.tensor([[0, 1, 2]])), torch.tensor([[-0.5, -0.5, 1.0]])
-    )
+    loss = standard_ce_loss(log_probs(logits, torch.tensor([[0, 1, 2]])), torch.tensor([[-0.5, -0.5, 1.0]]))
     torch.testing.assert_close(loss, -torch.log(torch.tensor(0.05 / 0.45)))
 
 

@@ -35,13 +35,18 @@ def tiny_notebook(path: Path, *cells: str) -> Path:
 
 
 def texts(notebook: nbformat.NotebookNode) -> list[str]:
-    return ["".join(o.get("text", "")) + "".join(o.get("data", {}).get("text/plain", ""))
-            for c in notebook.cells if c.cell_type == "code" for o in c.outputs]
+    return [
+        "".join(o.get("text", "")) + "".join(o.get("data", {}).get("text/plain", ""))
+        for c in notebook.cells
+        if c.cell_type == "code"
+        for o in c.outputs
+    ]
 
 
 def test_a_failed_execution_leaves_the_output_as_it_was(tmp_path: Path) -> None:
-    source = tiny_notebook(tmp_path / "fails.ipynb",
-                           "print('half way')", "raise RuntimeError('a cell fails')")
+    source = tiny_notebook(
+        tmp_path / "fails.ipynb", "print('half way')", "raise RuntimeError('a cell fails')"
+    )
     output = tmp_path / "out" / "fails.ipynb"
     output.parent.mkdir()
     output.write_text("the previous execution")
@@ -73,8 +78,12 @@ def test_an_interrupted_execution_leaves_the_output_as_it_was(
 
 
 def test_an_execution_runs_on_its_own_sockets_and_names_no_absolute_path(tmp_path: Path) -> None:
-    source = tiny_notebook(tmp_path / "tiny.ipynb", "print(value)", TRANSPORT,
-                           "from pathlib import Path\nPath.cwd() / 'figures' / 'fig.png'")
+    source = tiny_notebook(
+        tmp_path / "tiny.ipynb",
+        "print(value)",
+        TRANSPORT,
+        "from pathlib import Path\nPath.cwd() / 'figures' / 'fig.png'",
+    )
     output = tmp_path / "executed.ipynb"
     execute(source, output, {"value": 2}, root=tmp_path, progress_bar=False)
     written = output.read_text()
@@ -85,7 +94,9 @@ def test_an_execution_runs_on_its_own_sockets_and_names_no_absolute_path(tmp_pat
     injected = [INJECTED in c.metadata.get("tags", []) for c in executed.cells]
     assert injected == [False, True, False, False, False]
     assert (executed.metadata.papermill.input_path, executed.metadata.papermill.output_path) == (
-        "tiny.ipynb", "executed.ipynb")
+        "tiny.ipynb",
+        "executed.ipynb",
+    )
 
     as_committed(executed)
     assert not any(INJECTED in c.metadata.get("tags", []) for c in executed.cells)
@@ -107,8 +118,23 @@ def test_nbval_starts_its_kernels_on_sockets_of_their_own(tmp_path: Path) -> Non
     nbformat.write(executed, str(notebook))
     # As `make nbval` runs it; a kernel on TCP prints "tcp" and fails the checked cell.
     run = subprocess.run(
-        [sys.executable, "-m", "pytest", "-p", "tests.nbval_kernel", "-p", "no:cacheprovider",
-         "-p", "no:xdist", "--nbval-lax", "-q", str(notebook)],
-        cwd=ROOT, capture_output=True, text=True, check=False,
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-p",
+            "tests.nbval_kernel",
+            "-p",
+            "no:cacheprovider",
+            "-p",
+            "no:xdist",
+            "--nbval-lax",
+            "-q",
+            str(notebook),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
     )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]

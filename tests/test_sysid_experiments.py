@@ -43,8 +43,9 @@ def test_osi_pretraining_beats_predicting_the_midpoint_on_held_out_environments(
 
 
 def test_a_run_gives_identical_rows_twice():
-    cell = SIRun("wiping", "pesi", 0.64, noise=0.2, seed=3, episodes=4, eval_every=2, eval_episodes=2,
-                 data=TINY)
+    cell = SIRun(
+        "wiping", "pesi", 0.64, noise=0.2, seed=3, episodes=4, eval_every=2, eval_episodes=2, data=TINY
+    )
     first, second = run_si(cell), run_si(cell)
     pd.testing.assert_frame_equal(first, second)
     readouts = {"param_error", "param_error_argmax", "param_error_multislice"}
@@ -53,14 +54,18 @@ def test_a_run_gives_identical_rows_twice():
 
 
 def test_co_pesi_reports_its_filter_against_the_recorded_flips():
-    cell = SIRun("pushing", "co_pesi", 14.0, noise=0.3, episodes=40, eval_every=20, eval_episodes=1,
-                 data=TINY)
+    cell = SIRun(
+        "pushing", "co_pesi", 14.0, noise=0.3, episodes=40, eval_every=20, eval_episodes=1, data=TINY
+    )
     rows = run_si(cell)
     quality = rows[rows.metric.isin(["filter_precision", "filter_recall"])]
     assert set(quality.metric) == {"filter_precision", "filter_recall"}
     assert quality.value.between(0.0, 1.0).all()
-    assert "filter_precision" not in set(run_si(SIRun("pushing", "pesi", 14.0, noise=0.3, episodes=2,
-                                                      eval_every=2, eval_episodes=1, data=TINY)).metric)
+    assert "filter_precision" not in set(
+        run_si(
+            SIRun("pushing", "pesi", 14.0, noise=0.3, episodes=2, eval_every=2, eval_episodes=1, data=TINY)
+        ).metric
+    )
 
 
 @pytest.mark.parametrize(
@@ -68,11 +73,13 @@ def test_co_pesi_reports_its_filter_against_the_recorded_flips():
     [("wiping", 0.74, "co_pesi", 0.3), ("pushing", 15.5, "pesi_ce", 0.1)],
 )
 def test_replayed_learning_clips_give_the_rows_of_executing_them(domain, truth, method, noise, monkeypatch):
-    cell = SIRun(domain, method, truth, noise=noise, seed=1, episodes=6, eval_every=3, eval_episodes=1,
-                 data=TINY)
+    cell = SIRun(
+        domain, method, truth, noise=noise, seed=1, episodes=6, eval_every=3, eval_episodes=1, data=TINY
+    )
     # A PESI run at another noise level executes (and caches) the clips this run then replays.
-    run_si(SIRun(domain, "pesi", truth, noise=0.0, seed=1, episodes=6, eval_every=3, eval_episodes=1,
-                 data=TINY))
+    run_si(
+        SIRun(domain, "pesi", truth, noise=0.0, seed=1, episodes=6, eval_every=3, eval_episodes=1, data=TINY)
+    )
     replayed = run_si(cell)
     executed = []
     monkeypatch.setattr(si_run, "learning_clips", lambda *args: executed.append(args))
@@ -153,8 +160,9 @@ def test_a_run_with_fewer_episodes_reads_the_start_of_a_longer_ones_clips_and_ch
     for a, b in zip(longer[:2], shorter, strict=True):
         np.testing.assert_array_equal(a[0].slices, b[0].slices)
     # So a short run replaying a long run's clips and checkpoints gives the rows of executing its own.
-    short = SIRun("wiping", "pesi", 0.66, noise=0.1, seed=4, episodes=4, eval_every=2, eval_episodes=1,
-                  data=TINY)
+    short = SIRun(
+        "wiping", "pesi", 0.66, noise=0.1, seed=4, episodes=4, eval_every=2, eval_episodes=1, data=TINY
+    )
     run_si(dataclasses.replace(short, episodes=8))
     replayed = run_si(short)
     sweep._ARTEFACTS.clear()

@@ -69,7 +69,11 @@ def test_executing_a_notebook_changes_no_tracked_file(tmp_path: Path) -> None:
     # The kernel's view of where results go: the same interpreter, environment and working directory.
     where = subprocess.run(
         [sys.executable, "-c", "from hipref.results import results_dir; print(results_dir().resolve())"],
-        cwd=ROOT / "notebooks", env=env, capture_output=True, text=True, check=True,
+        cwd=ROOT / "notebooks",
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
     )
     destination = Path(where.stdout.strip())
     # Checked before executing, so that a wrong set-up fails without overwriting the committed results.
@@ -80,9 +84,20 @@ def test_executing_a_notebook_changes_no_tracked_file(tmp_path: Path) -> None:
     before = checkout_state()
     tiny = [arg for name, value in TINY.items() for arg in ("-p", name, str(value))]
     subprocess.run(
-        [sys.executable, "-m", "hipref.run_notebook", "--no-progress-bar",
-         "-f", f"params/quick/{NOTEBOOK.stem}.yaml", *tiny, str(NOTEBOOK), str(tmp_path / NOTEBOOK.name)],
-        cwd=ROOT, env=env, check=True,
+        [
+            sys.executable,
+            "-m",
+            "hipref.run_notebook",
+            "--no-progress-bar",
+            "-f",
+            f"params/quick/{NOTEBOOK.stem}.yaml",
+            *tiny,
+            str(NOTEBOOK),
+            str(tmp_path / NOTEBOOK.name),
+        ],
+        cwd=ROOT,
+        env=env,
+        check=True,
     )
     assert (destination / "claims.md").is_file(), f"the notebook wrote no claims to {destination}"
     after = checkout_state()

@@ -28,7 +28,7 @@ import pandas as pd
 from hipref.experiments.domains import DOMAINS, domain_spec
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_run import METHODS, FineTuning, SIRun, run_si, run_streams
-from hipref.learners.answer_models import told
+from hipref.learners.answer_models import TOLD, hypotheses, told
 from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.queries import QUERY_RULES
 from hipref.numerics import one_thread
@@ -39,8 +39,9 @@ from hipref.teachers.models import TEACHER_KINDS, TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_int, check_range
 
-TASK_METHODS: tuple[str, ...] = ("pesi", "co_pesi", "bayes")
-"""The learners of the task part: the paper's two and the Bayesian one."""
+TASK_METHODS: tuple[str, ...] = ("pesi", "co_pesi", "bayes", "bayes_si")
+"""The learners of the task part: the paper's two and the Bayesian one, from a uniform prior or from SI's
+Pr(phi | tau) on each evaluation slice."""
 
 CONSISTENT = 0.9
 """'Reaches one grid step' means: in at least this share of the environments."""
@@ -78,8 +79,8 @@ class AnswersCell:
     """Its uniform flip rate."""
     query_rule: str
     """One of QUERY_RULES."""
-    told_model: bool
-    """Told the teacher's model and flip rate, or weighing every model by its marginal likelihood."""
+    told: str
+    """What the learner is told of the teacher: its 'model', its 'kind' or 'nothing' (`TOLD`)."""
     episodes: int
     """Answers asked."""
 
@@ -90,8 +91,7 @@ class AnswersCell:
         check_choice("teacher", self.teacher, TEACHER_KINDS)
         check_range("noise", self.noise, 0.0, 0.5 - 1e-9)
         check_choice("query_rule", self.query_rule, QUERY_RULES)
-        if not isinstance(self.told_model, bool):
-            raise ValueError(f"told_model must be True or False, got {self.told_model!r}")
+        check_choice("told", self.told, TOLD)
         check_int("episodes", self.episodes, 1)
 
 
@@ -104,9 +104,9 @@ def run_answers(cell: AnswersCell) -> pd.DataFrame:
     teacher = ScriptedPreferenceTeacher(
         cell.ground_truth, cell.noise, np.random.default_rng(teacher_seq), model, scale=phi.high - phi.low
     )
-    answer_model = told(model, cell.noise) if cell.told_model else None
+    models = hypotheses(model, cell.noise, cell.told)
     learner = BayesLearner(
-        phi, BayesConfig(query_rule=cell.query_rule, answer_model=answer_model), integer_seed(learner_seq)
+        phi, BayesConfig(query_rule=cell.query_rule, answer_models=models), integer_seed(learner_seq)
     )
     counts = set(answer_counts(cell.episodes))
     rows: list[tuple[int, str, float]] = []
@@ -133,7 +133,7 @@ def run_answers(cell: AnswersCell) -> pd.DataFrame:
         ground_truth=round(cell.ground_truth, 6),
         teacher=cell.teacher,
         query_rule=cell.query_rule,
-        told_model=cell.told_model,
+        told=cell.told,
         part="answers",
     )
 
@@ -150,6 +150,8 @@ class AnswersConfig(Protocol):
     """True cube masses in kg of the pushing environments, each in [8, 20]."""
     episodes: int = 66
     """Answers per run, at least 1."""
+    eval_every: int = 1
+    """Not used: the task part evaluates after `checkpoints` (1 passes the base's check for any episodes)."""
     checkpoints: tuple[int, ...] = (0, 5, 10, 20, 33, 66)
     """Answers after which the task part evaluates (increasing, from 0 to `episodes`)."""
     eval_episodes: int = 3
@@ -166,6 +168,9 @@ class AnswersConfig(Protocol):
     """Learners of the task part, of TASK_METHODS."""
     task_rules: tuple[str, ...] = ("uniform", "information_gain")
     """Query rules of the task part, of QUERY_RULES; PESI's scores pairs on SI's belief."""
+    task_seeds: int = 1
+    """Seeds per true parameter of the task part (its environments are the first of the answers part's):
+    the physics costs a hundred times what the answers alone do."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -189,17 +194,29 @@ class AnswersConfig(Protocol):
                 f"checkpoints must run from 0 to episodes={self.episodes}, got {self.checkpoints!r}"
             )
         SIRun("wiping", "pesi", 0.7, episodes=self.episodes, checkpoints=self.checkpoints)
+        check_int("task_seeds", self.task_seeds, 1, self.seeds)
+
+    def task_environments(self, domain: str) -> list[tuple[float, int]]:
+        """The task part's (ground truth, seed): the grid crossed with the first `task_seeds` seeds."""
+        return [(truth, seed) for truth, seed in self.environments(domain) if seed < self.task_seeds]
 
     def answers_cells(self) -> list[AnswersCell]:
-        """The answers part: per environment, the paper's teacher at every flip rate under every rule,
-        told and not told; every other teacher under information gain, told and not told."""
-        settings = [("mistake", e, rule) for e in self.noise_levels for rule in self.answer_rules]
-        settings += [(teacher, 0.0, "information_gain") for teacher in self.teachers]
+        """The answers part: per environment, the paper's teacher at every flip rate under every rule, told
+        its model, its kind or nothing; every other teacher under information gain, told its model or
+        nothing."""
+        settings = [
+            ("mistake", e, rule, told)
+            for e in self.noise_levels
+            for rule in self.answer_rules
+            for told in TOLD
+        ]
+        settings += [
+            (t, 0.0, "information_gain", told) for t in self.teachers for told in ("model", "nothing")
+        ]
         return [
-            AnswersCell(domain, truth, seed, teacher, noise, rule, told_model, self.episodes)
+            AnswersCell(domain, truth, seed, teacher, noise, rule, told, self.episodes)
             for domain in self.domains
-            for teacher, noise, rule in settings
-            for told_model in (True, False)
+            for teacher, noise, rule, told in settings
             for truth, seed in self.environments(domain)
         ]
 
@@ -220,7 +237,7 @@ class AnswersConfig(Protocol):
             for method in self.methods
             if not (method.startswith("co_pesi") and noise == 0)
             for rule in self.task_rules
-            for truth, seed in self.environments(domain)
+            for truth, seed in self.task_environments(domain)
         ]
 
 
@@ -243,15 +260,95 @@ def run_cell(cell: SIRun | AnswersCell) -> pd.DataFrame:
 
 def run(config: AnswersConfig, **sweep: Any) -> pd.DataFrame:
     """Both parts' tidy rows, with the columns `part` ('task' or 'answers'), teacher, query_rule and
-    told_model on every row. One sweep, the task part's runs first: they take the longest."""
+    told on every row. One sweep, the task part's runs first: they take the longest."""
     config.pretrain(config.domains, **sweep)
     task, answers = config.task_cells(), config.answers_cells()
     rows = run_sweep(run_cell, [*task, *answers], desc="answers to success", **sweep)
     rows["part"] = rows["part"].fillna("task")
     rows["teacher"] = rows["teacher"].fillna("mistake")
     rows["query_rule"] = rows["query_rule"].fillna("uniform")
-    rows["told_model"] = rows["told_model"].fillna(False).astype(bool)
+    rows["told"] = rows["told"].fillna("nothing")
     return rows
 
 
 assert set(TASK_METHODS) <= set(METHODS)
+
+SETTING = ["domain", "teacher", "noise", "query_rule", "told"]
+"""What one curve of the answers part is the curve of."""
+
+
+def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFrame:
+    """Per setting of the answers part, the answers after which the error is within one step of Phi (1 cm,
+    0.25 kg) in at least `share` of the environments and stays so up to the last answer (NaN if never),
+    beside the Shannon floor for the paper's teacher (`shannon_floor`, K = |Phi|, e its flip rate) and
+    their ratio."""
+    errors = rows[(rows["part"] == "answers") & (rows["metric"] == "param_error")]
+    out = []
+    for setting, group in errors.groupby(SETTING, sort=False):
+        domain, teacher, noise = setting[0], setting[1], float(setting[2])
+        phi = domain_spec(str(domain)).candidates
+        wide = group.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
+        within = (wide <= phi.resolution * (1 + 1e-9)).mean(axis=0)
+        failing = np.flatnonzero(within.to_numpy() < share)
+        counts = within.index.to_numpy()
+        reached = counts[failing[-1] + 1] if failing.size and failing[-1] + 1 < counts.size else np.nan
+        if not failing.size:
+            reached = counts[0]
+        floor = shannon_floor(phi.size, noise) if teacher == "mistake" else np.nan
+        out.append((*setting, len(wide), float(reached), floor, float(reached) / floor))
+    return pd.DataFrame(out, columns=[*SETTING, "environments", "answers", "floor", "ratio"])
+
+
+def efficiency(rows: pd.DataFrame) -> pd.DataFrame:
+    """PESI's information efficiency: per domain and flip rate of both parts, for each checkpoint n of the
+    task part, the fewest answers m after which the Bayesian learner (uniform queries, model not told) has
+    a mean error at most PESI's mean error after n (same environments, uniform queries), and m / n."""
+    task = rows[
+        (rows["part"] == "task") & (rows["metric"] == "param_error") & (rows["query_rule"] == "uniform")
+    ]
+    answers = rows[
+        (rows["part"] == "answers")
+        & (rows["metric"] == "param_error")
+        & (rows["teacher"] == "mistake")
+        & (rows["query_rule"] == "uniform")
+        & (rows["told"] == "nothing")
+    ]
+    out = []
+    for (domain, noise), pesi in task[task["method"] == "pesi"].groupby(["domain", "noise"], sort=False):
+        bayes = answers[(answers["domain"] == domain) & (answers["noise"] == noise)]
+        if bayes.empty:
+            continue
+        curve = bayes.groupby("episode")["value"].mean()
+        for n, error in pesi[pesi["episode"] > 0].groupby("episode")["value"].mean().items():
+            matched = curve.index[curve.to_numpy() <= error]
+            m = float(matched[0]) if matched.size else np.nan
+            out.append((domain, noise, int(n), float(error), m, m / int(n)))
+    return pd.DataFrame(
+        out, columns=["domain", "noise", "answers", "pesi_error", "bayes_answers", "efficiency"]
+    )
+
+
+def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
+    """Per domain, teacher and flip rate under information gain: the answers to one step (`answers_to_step`)
+    and the mean error at the last answer of the learner told the teacher's kind only and of the one told
+    nothing (every model weighed by its marginal likelihood), each against the learner told the true
+    model: `kind_ratio`, `nothing_ratio` divide the answers, or where the told learner never gets within one
+    step, the final errors."""
+    keys = ["domain", "teacher", "noise"]
+    ig = steps[steps["query_rule"] == "information_gain"]
+    answers = ig.pivot(index=keys, columns="told", values="answers")
+    errors = rows[
+        (rows["part"] == "answers")
+        & (rows["metric"] == "param_error")
+        & (rows["query_rule"] == "information_gain")
+    ]
+    last = errors[errors["episode"] == errors["episode"].max()]
+    final = last.groupby([*keys, "told"])["value"].mean().unstack("told")
+    out = answers.join(final, rsuffix="_error").reindex(columns=[*TOLD, *(f"{t}_error" for t in TOLD)])
+    reached = out["model"].notna()
+    for told_ in ("kind", "nothing"):
+        out[f"{told_}_ratio"] = np.where(
+            reached, out[told_] / out["model"], out[f"{told_}_error"] / out["model_error"]
+        )
+    out["compared"] = np.where(reached, "answers", "final error")
+    return out.reset_index()

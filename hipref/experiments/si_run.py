@@ -19,6 +19,7 @@ the range: OSI is evaluated on the inputs it was trained for.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -30,7 +31,7 @@ from hipref.envs.task import Clip, Layout, Task, clip, probe_slice
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.low_level import make_task
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
-from hipref.learners.answer_models import told
+from hipref.learners.answer_models import TOLD, hypotheses
 from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.coteaching import (
     CoPESIConfig,
@@ -126,9 +127,9 @@ class SIRun:
     teacher: TeacherModel = TeacherModel()  # noqa: RUF009 - frozen, so a shared default is safe
     """The scripted teacher's model (`hipref.teachers.models`); the paper's uniform flip of rate `noise`
     by default. Its rows carry a `teacher` column unless it is the default."""
-    told_model: bool = False
-    """'bayes' only: the learner is told the teacher's model and flip rate, instead of weighing every
-    model of `hipref.learners.answer_models.model_family` by its marginal likelihood."""
+    told: str = "nothing"
+    """'bayes' only: what the learner is told of the teacher (`hipref.learners.answer_models.TOLD`): its
+    'model', its 'kind', or 'nothing' (every model weighed by its marginal likelihood)."""
     checkpoints: tuple[int, ...] = ()
     """Learning episodes after which the learner is evaluated, increasing, from 0 to `episodes`; empty:
     every `eval_every` (section 5)."""
@@ -151,14 +152,14 @@ class SIRun:
         if self.teacher.kind == "distance" and self.n_candidates != 2:
             raise ValueError(f"n_candidates must be 2 for the 'distance' teacher, got {self.n_candidates}")
         check_int("episodes", self.episodes, 1)
-        check_int("eval_every", self.eval_every, 1, self.episodes)
+        if not self.checkpoints:
+            check_int("eval_every", self.eval_every, 1, self.episodes)
         check_int("eval_episodes", self.eval_episodes, 1)
         check_int("eval_slices", self.eval_slices, 1)
-        if not isinstance(self.told_model, bool):
-            raise ValueError(f"told_model must be True or False, got {self.told_model!r}")
-        if self.told_model and self.method != "bayes":
-            raise ValueError(f"told_model is for the 'bayes' method, got method {self.method!r}")
-        if self.method == "bayes" and self.fine_tuning.candidate_sampling == "belief":
+        check_choice("told", self.told, TOLD)
+        if self.told != "nothing" and self.method not in ("bayes", "bayes_si"):
+            raise ValueError(f"told is for the 'bayes' method, got method {self.method!r}")
+        if self.method.startswith("bayes") and self.fine_tuning.candidate_sampling == "belief":
             raise ValueError(
                 "candidate_sampling 'belief' is PESI's; the 'bayes' method takes 'uniform' or a rule"
             )
@@ -189,8 +190,8 @@ def _coteaching_config(cell: SIRun, common: dict[str, Any]) -> CoPESIConfig:
 
 
 def _bayes_config(cell: SIRun) -> BayesConfig:
-    answer_model = told(cell.teacher, cell.noise) if cell.told_model else None
-    return BayesConfig(cell.n_candidates, cell.fine_tuning.candidate_sampling, answer_model)
+    models = hypotheses(cell.teacher, cell.noise, cell.told)
+    return BayesConfig(cell.n_candidates, cell.fine_tuning.candidate_sampling, models)
 
 
 def _robust_config(cell: SIRun, common: dict[str, Any]) -> RobustPESIConfig:
@@ -228,6 +229,9 @@ LEARNERS: dict[str, LearnerBuilder] = {
     "bayes": lambda cell, model, common, seed: BayesLearner(
         model.candidates, _bayes_config(cell), seed, si_model=model
     ),
+    "bayes_si": lambda cell, model, common, seed: BayesLearner(
+        model.candidates, dataclasses.replace(_bayes_config(cell), prior="si"), seed, si_model=model
+    ),
 }
 """Every method by name. osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy
 (A.8); co_pesi: Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level
@@ -235,12 +239,13 @@ estimated by Algorithm 5 from the preferences so far (A.9). Beyond the paper (`h
 pesi_smoothed: label smoothing of Eq. 2 (conservative); pesi_unbiased: the unbiased loss with the estimated
 flip rate; pesi_small_loss: SI's own small-loss filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood:
 Algorithm 1 with the maximum marginal likelihood flip rate; bayes: the exact posterior over phi from every
-answer (`hipref.learners.bayes`), its model of the teacher chosen by marginal likelihood unless told."""
+answer (`hipref.learners.bayes`), its model of the teacher chosen by marginal likelihood unless told;
+bayes_si: that posterior times SI's Pr(phi | tau) on the slice estimated from, so OSI's knowledge is kept."""
 
 METHODS: tuple[str, ...] = tuple(LEARNERS)
 """The methods' names, in LEARNERS' order."""
 
-PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce", "bayes"}
+PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce", "bayes", "bayes_si"}
 """Methods defined on pairs only (N = 2): classifiers of pairs, or losses mixing y and -y."""
 
 
@@ -476,5 +481,5 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             if cell.fine_tuning.candidate_sampling in CHOSEN
             else {}
         ),
-        **({"told_model": True} if cell.told_model else {}),
+        **({"told": cell.told} if cell.told != "nothing" else {}),
     )

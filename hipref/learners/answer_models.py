@@ -186,6 +186,23 @@ def told(teacher: TeacherModel, noise: float) -> AnswerModel:
     return AnswerModel(flip=noise, **own)  # type: ignore[arg-type]
 
 
+TOLD: tuple[str, ...] = ("model", "kind", "nothing")
+"""What a learner is told of the teacher: its model (kind, parameters and flip rate), its kind only (the
+parameters and flip rate weighed over the kind's grid in `model_family`), or nothing (every model)."""
+
+
+def hypotheses(teacher: TeacherModel, noise: float, told_: str) -> tuple[AnswerModel, ...]:
+    """The answer models a learner told `told_` (one of TOLD) about `teacher` flipping at `noise` weighs."""
+    check_choice("told", told_, TOLD)
+    if told_ == "model":
+        return (told(teacher, noise),)
+    family = model_family()
+    if told_ == "nothing":
+        return family
+    kind = told(teacher, 0.0).kind
+    return tuple(m for m in family if m.kind == kind)
+
+
 FLIP_GRID: tuple[float, ...] = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45)
 """The flip rates a learner not told the model weighs (a uniform prior over them)."""
 
@@ -194,27 +211,16 @@ def model_family() -> tuple[AnswerModel, ...]:
     """The hypotheses of a learner that is not told the teacher's model: every kind over a grid of its
     parameters, each weighed by its marginal likelihood (`hipref.learners.bayes.PreferencePosterior`).
 
-    The grids span the teachers' plausible range without singling out the scripted teachers' defaults:
-    flip rates of FLIP_GRID; rationalities beta 2-64 (log-spaced); pictures spread 0.05-0.8 of the range;
-    confusion up to 0.3-0.5 over widths 0.05-0.4; skip distances and equal margins on small grids, each with
-    flips of 0-0.3 on top."""
+    The grids are coarse, to keep a choice of query cheap (30 models), and do not single out the scripted
+    teachers' defaults: flip rates of FLIP_GRID; rationalities beta 2, 8, 32; a picture's spread 0.1 and
+    0.3 of the range; confusion of 1/2 over widths 0.1-0.4; skip distances and equal margins on small grids,
+    each with 0 or 20 % flips on top."""
     base = AnswerModel()
     models = [replace(base, kind="flip", flip=e) for e in FLIP_GRID]
-    models += [replace(base, kind="stochastic", beta=b) for b in (2.0, 4.0, 8.0, 16.0, 32.0, 64.0)]
-    models += [replace(base, kind="myopic", spread=s) for s in (0.05, 0.1, 0.2, 0.4, 0.8)]
-    models += [
-        replace(base, kind="distance", confusion_max=c, confusion_width=w)
-        for c in (0.3, 0.5)
-        for w in (0.05, 0.1, 0.2, 0.4)
-    ]
-    models += [
-        replace(base, kind="skip", skip_distance=s, flip=e)
-        for s in (0.1, 0.2, 0.3, 0.4)
-        for e in (0.0, 0.1, 0.3)
-    ]
-    models += [
-        replace(base, kind="equal", equal_margin=m, flip=e)
-        for m in (0.025, 0.05, 0.1)
-        for e in (0.0, 0.1, 0.3)
-    ]
+    models += [replace(base, kind="stochastic", beta=b) for b in (2.0, 8.0, 32.0)]
+    models += [replace(base, kind="myopic", spread=s) for s in (0.1, 0.3)]
+    models += [replace(base, kind="distance", confusion_width=w) for w in (0.1, 0.2, 0.4)]
+    flips = (0.0, 0.2)
+    models += [replace(base, kind="skip", skip_distance=s, flip=e) for s in (0.2, 0.3, 0.4) for e in flips]
+    models += [replace(base, kind="equal", equal_margin=m, flip=e) for m in (0.025, 0.05, 0.1) for e in flips]
     return tuple(models)

@@ -33,7 +33,7 @@ import torch
 from scipy.special import logsumexp
 
 from hipref.learners.answer_models import EQUAL_COLUMN, SKIP_COLUMN, AnswerModel, model_family, with_flip
-from hipref.learners.queries import QUERY_RULES, choose_pair
+from hipref.learners.queries import QUERY_RULES, choose_pair, pair_table
 from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.teachers.preference import EQUAL, NoLabel, PreferenceQuery, preference_label_vector
 from hipref.validation import check_choice, check_int
@@ -57,7 +57,7 @@ def answer_column(label: int | np.ndarray | NoLabel, n_candidates: int) -> int:
 class PreferencePosterior:
     """Pr(phi, m | answers) on a grid of cells over Phi's range, for answer models m (module docstring)."""
 
-    def __init__(self, candidates: CandidateSet, models: tuple[AnswerModel, ...], refine: int = 10) -> None:
+    def __init__(self, candidates: CandidateSet, models: tuple[AnswerModel, ...], refine: int = 4) -> None:
         check_int("refine", refine, 2)
         if refine % 2:
             raise ValueError(f"refine must be even (cells nest in half steps of Phi), got {refine}")
@@ -83,6 +83,28 @@ class PreferencePosterior:
         self.answers: list[tuple[np.ndarray, int]] = []
 
     def _probabilities(self, candidates: np.ndarray, column: int) -> np.ndarray:
+        if candidates.size == 2:
+            return self._pair_probabilities(candidates, column)
+        return self._computed_probabilities(candidates, column)
+
+    def _pair_probabilities(self, candidates: np.ndarray, column: int) -> np.ndarray:
+        """A pair's likelihood read from the models' tables of every pair of Phi (`pair_table`)."""
+        i, j = (self.candidates.index_of(float(v)) for v in candidates)
+        if i == j:
+            raise ValueError(f"candidates must be distinct, got {tuple(candidates)}")
+        if i > j:  # the table holds (lower, higher): the first and second answers swap
+            i, j = j, i
+            column = {0: 1, 1: 0}.get(column, column)
+        size = self.candidates.size
+        pair = i * size - i * (i + 1) // 2 + (j - i - 1)
+        rows = []
+        for model in self.models:
+            table = pair_table(self.candidates, self.cells, model)
+            kept = np.flatnonzero(table.outcomes == column)
+            rows.append(table.probs[pair, kept[0]] if kept.size else np.zeros(self.cells.size))
+        return np.stack(rows)
+
+    def _computed_probabilities(self, candidates: np.ndarray, column: int) -> np.ndarray:
         offsets = (candidates[None, :] - self.cells[:, None]) / (self.candidates.high - self.candidates.low)
         # A model's flip acts after its rule: the rule is computed once per model without the flip.
         rules: dict[AnswerModel, np.ndarray] = {}
@@ -144,7 +166,7 @@ class PreferencePosterior:
             wrong.append(float(weights[~nearest].sum()))
         return np.array(wrong)
 
-    def query_beliefs(self, mass: float = 0.999, most: int = 12) -> list[tuple[AnswerModel, np.ndarray]]:
+    def query_beliefs(self, mass: float = 0.999, most: int = 6) -> list[tuple[AnswerModel, np.ndarray]]:
         """The belief a query rule scores: per model, its weights summed onto `query_points`, for the
         heaviest models holding `mass` of the posterior (at most `most`), renormalised."""
         joint = self.joint()
@@ -167,15 +189,16 @@ class BayesConfig:
     """N, candidates per query; the chosen query rules ask pairs."""
     query_rule: str = "uniform"
     """How queries are chosen, one of QUERY_RULES (`hipref.learners.queries`)."""
-    answer_model: AnswerModel | None = None
-    """The teacher's answer model if told; None: every model of `model_family()`, weighed by its marginal
-    likelihood."""
+    answer_models: tuple[AnswerModel, ...] | None = None
+    """The answer models weighed by their marginal likelihood: one if told the teacher's model (`told`),
+    a kind's grid if told its kind (`hypotheses`); None: every model of `model_family()`."""
     prior: str = "uniform"
     """One of PRIORS: 'uniform', or 'si' (SI's Pr(phi | tau) on the slice estimated for)."""
     estimate: str = "median"
     """One of ESTIMATES: 'median', 'mean', or 'expected_success' (needs a success curve)."""
-    refine: int = 10
-    """Cells of the posterior per step of Phi (even)."""
+    refine: int = 4
+    """Points of the posterior per step of Phi (even): 4 puts one on every pair midpoint and one inside
+    every interval between midpoints, where the flip model's posterior is constant."""
 
     def __post_init__(self) -> None:
         check_int("n_candidates", self.n_candidates, 2)
@@ -184,8 +207,10 @@ class BayesConfig:
             raise ValueError(
                 f"query_rule {self.query_rule!r} asks pairs: n_candidates must be 2, got {self.n_candidates}"
             )
-        if self.answer_model is not None and not isinstance(self.answer_model, AnswerModel):
-            raise ValueError(f"answer_model must be an AnswerModel or None, got {self.answer_model!r}")
+        if self.answer_models is not None and (
+            not self.answer_models or not all(isinstance(m, AnswerModel) for m in self.answer_models)
+        ):
+            raise ValueError(f"answer_models must be AnswerModels or None, got {self.answer_models!r}")
         check_choice("prior", self.prior, PRIORS)
         check_choice("estimate", self.estimate, ESTIMATES)
         check_int("refine", self.refine, 2)
@@ -226,7 +251,7 @@ class BayesLearner:
             raise ValueError(
                 f"n_candidates must be at most |Phi| = {self.candidates.size}, got {self.config.n_candidates}"
             )
-        models = (self.config.answer_model,) if self.config.answer_model is not None else model_family()
+        models = self.config.answer_models if self.config.answer_models is not None else model_family()
         self.posterior = PreferencePosterior(self.candidates, models, self.config.refine)
         # The same streams as PESILearner's: under 'uniform' the same queries from the same seed.
         query_seed, _, _ = np.random.SeedSequence(seed).spawn(3)

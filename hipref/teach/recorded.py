@@ -1,12 +1,14 @@
-"""A stored session as a teacher: a person's answers re-run through PESI, CO-PESI and the noise estimators.
+"""A stored session as a teacher: a person's answers re-run through the learners and the noise estimators.
 
 `RecordedPreferenceTeacher` answers each query with the label the session stored for it, as the scripted
 teachers answer theirs, after checking that the query is the one the person was shown. `replay` rebuilds a
-learner of the session's environment from the stored slices (no physics): PESI, as in the session, or
-CO-PESI with its noise level estimated (A.9), which a person's unknown flip rate calls for. `summary` reads
+learner of the session's environment from the stored slices (no physics): PESI, as in the session,
+CO-PESI with its noise level estimated (A.9), which a person's unknown flip rate calls for, or the Bayesian
+learner told nothing of the teacher (`hipref.learners.bayes`), which asks the same queries from the same seed
+and also reads "can't tell" (the truth near the pair's midpoint). `summary` reads
 what the answers say about the person: how often they agreed with the truth, how long they took, and the
-flip rate each estimator infers from the answers alone. "Can't tell" answers give no label and are left
-out of every count but their own.
+flip rate each estimator infers from the answers alone. "Can't tell" answers give PESI no label and are
+left out of every count but their own.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 from hipref.envs.task import Clip
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
+from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.coteaching import CoPESIConfig, EstimatedNoiseCoPESILearner
 from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
 from hipref.learners.noise_rate import likelihood_noise, repeated_pair_noise
@@ -27,10 +30,10 @@ from hipref.seeds import integer_seed
 from hipref.teach.config import TeachConfig
 from hipref.teach.preferences import evaluation_slices, session_streams
 from hipref.teach.session import SessionFile
-from hipref.teachers.preference import PreferenceQuery, pair_labels
+from hipref.teachers.preference import EQUAL, PreferenceQuery, pair_labels
 from hipref.validation import check_choice
 
-REPLAYED: tuple[str, ...] = ("pesi", "co_pesi_estimated")
+REPLAYED: tuple[str, ...] = ("pesi", "co_pesi_estimated", "bayes")
 """Learners a session can be replayed into."""
 
 
@@ -57,17 +60,23 @@ class RecordedPreferenceTeacher:
         return record["label"]
 
 
-def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str = "pesi") -> PESILearner:
+def replay(
+    config: TeachConfig, records: Sequence[dict[str, Any]], method: str = "pesi"
+) -> PESILearner | BayesLearner:
     """A learner of `method` told the session's answers in order, on the stored slices (no physics)."""
     check_choice("method", method, REPLAYED)
     spec = domain_spec(config.domain)
     model = pretrained_model(config.domain, config.data)
     h = config.data.history
-    if method == "pesi":
+    seed = integer_seed(session_streams(config).learner)
+    learner: PESILearner | BayesLearner
+    if method == "bayes":
+        learner = BayesLearner(spec.candidates, BayesConfig(), seed)
+    elif method == "pesi":
         learner = PESILearner(
             model,
             PESIConfig(batch_size=spec.batch_size, history=h),
-            integer_seed(session_streams(config).learner),
+            seed,
         )
     else:
         coteaching = CoPESIConfig(
@@ -76,9 +85,7 @@ def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str =
             start_size=spec.batch_size,
             refresh_frequency=spec.refresh_frequency,
         )
-        learner = EstimatedNoiseCoPESILearner(
-            model, coteaching, integer_seed(session_streams(config).learner)
-        )
+        learner = EstimatedNoiseCoPESILearner(model, coteaching, seed)
     teacher = RecordedPreferenceTeacher(records)
     for record in records:
         stored = record["clip"]
@@ -87,6 +94,8 @@ def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str =
         label = teacher.answer(query)
         if label is not None:
             learner.tell(query, label)
+        elif isinstance(learner, BayesLearner):
+            learner.tell(query, EQUAL)
     return learner
 
 
@@ -130,7 +139,9 @@ def summary(session: SessionFile, config: TeachConfig) -> dict[str, float]:
     result["osi_error"] = abs(float(osi.predict(evaluation).mean()) - config.true_parameter)
     for method in REPLAYED:
         learner = replay(config, records, method)
-        result[f"{method}_error"] = abs(
-            float(learner.model.predict(evaluation).mean()) - config.true_parameter
-        )
+        if isinstance(learner, BayesLearner):
+            estimate = learner.estimate()
+        else:
+            estimate = float(learner.model.predict(evaluation).mean())
+        result[f"{method}_error"] = abs(estimate - config.true_parameter)
     return result

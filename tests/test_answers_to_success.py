@@ -1,0 +1,175 @@
+"""Notebook 12's study: its floor, its read-outs and the refusals of its config."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hipref.experiments.answers_to_success import (
+    AnswersCell,
+    AnswersConfig,
+    answer_counts,
+    answers_to_step,
+    efficiency,
+    run_answers,
+    shannon_floor,
+    told_against_chosen,
+)
+from hipref.experiments.si_run import FineTuning, SIRun
+
+
+def test_the_shannon_floor_is_log2_k_over_the_channel_capacity() -> None:
+    assert shannon_floor(41, 0.0) == pytest.approx(math.log2(41))
+    # The issue's figures for the 41 desk heights: 5.4, 10.1, 19.3 and 45.1 answers at 0, 10, 20, 30 %.
+    for flip, answers in [(0.0, 5.4), (0.1, 10.1), (0.2, 19.3), (0.3, 45.1)]:
+        assert shannon_floor(41, flip) == pytest.approx(answers, abs=0.05)
+    with pytest.raises(ValueError, match="flip"):
+        shannon_floor(41, 0.5)
+
+
+def _answers_rows(errors: dict[tuple[float, int], list[float]], counts: list[int]) -> pd.DataFrame:
+    rows = []
+    for (truth, seed), values in errors.items():
+        for count, value in zip(counts, values, strict=True):
+            rows.append(
+                dict(
+                    domain="wiping",
+                    method="bayes",
+                    noise=0.0,
+                    seed=seed,
+                    episode=count,
+                    metric="param_error",
+                    value=value,
+                    ground_truth=truth,
+                    teacher="mistake",
+                    query_rule="information_gain",
+                    told="model",
+                    part="answers",
+                )
+            )
+    return pd.DataFrame(rows)
+
+
+def test_answers_to_step_is_where_enough_environments_are_within_a_step_for_good() -> None:
+    counts = [1, 2, 3, 4]
+    errors = {
+        (0.6, 0): [0.05, 0.005, 0.02, 0.001],  # leaves the step at 3: counts from 4 only
+        (0.7, 0): [0.05, 0.005, 0.005, 0.001],
+    }
+    steps = answers_to_step(_answers_rows(errors, counts))
+    assert steps.loc[0, "answers"] == 4
+    assert steps.loc[0, "floor"] == pytest.approx(math.log2(41))
+    # 9 of 10 environments suffice: one that never gets there does not stop the count.
+    errors = {(0.5 + i / 100, 0): [0.05, 0.005, 0.005, 0.005] for i in range(9)}
+    errors[(0.9, 0)] = [0.05, 0.05, 0.05, 0.05]
+    assert answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"] == 2
+    errors[(0.89, 0)] = [0.05, 0.05, 0.05, 0.05]
+    assert np.isnan(answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"])
+
+
+def test_efficiency_finds_the_answers_the_bayesian_learner_needs_to_match_pesi() -> None:
+    base = dict(
+        domain="wiping",
+        noise=0.2,
+        seed=0,
+        ground_truth=0.7,
+        metric="param_error",
+        told="nothing",
+        teacher="mistake",
+        query_rule="uniform",
+    )
+    rows = pd.DataFrame(
+        [
+            dict(base, method="pesi", part="task", episode=e, value=v)
+            for e, v in [(0, 0.1), (10, 0.04), (20, 0.03)]
+        ]
+        + [
+            dict(base, method="bayes", part="answers", episode=e, value=v)
+            for e, v in [(1, 0.1), (2, 0.035), (3, 0.02)]
+        ]
+    )
+    table = efficiency(rows)
+    assert list(table.bayes_answers) == [2.0, 3.0]
+    assert list(table.efficiency) == [0.2, 0.15]
+
+
+def test_told_against_chosen_divides_answers_or_else_final_errors() -> None:
+    steps = pd.DataFrame(
+        [
+            dict(
+                domain="wiping", teacher=teacher, noise=0.2, query_rule="information_gain", told=t, answers=a
+            )
+            for teacher, answers in [("mistake", (20.0, 22.0, 30.0)), ("myopic", (np.nan, np.nan, np.nan))]
+            for t, a in zip(("model", "kind", "nothing"), answers, strict=True)
+        ]
+    )
+    rows = pd.DataFrame(
+        [
+            dict(
+                domain="wiping",
+                teacher=teacher,
+                noise=0.2,
+                query_rule="information_gain",
+                told=t,
+                part="answers",
+                metric="param_error",
+                episode=330,
+                seed=0,
+                value=v,
+            )
+            for teacher in ("mistake", "myopic")
+            for t, v in [("model", 0.02), ("kind", 0.03), ("nothing", 0.05)]
+        ]
+    )
+    table = told_against_chosen(steps, rows).set_index("teacher")
+    assert table.loc["mistake", "kind_ratio"] == pytest.approx(1.1)
+    assert table.loc["mistake", "nothing_ratio"] == pytest.approx(1.5)
+    assert table.loc["myopic", "nothing_ratio"] == pytest.approx(2.5)
+    assert table.loc["myopic", "compared"] == "final error"
+
+
+def test_answer_counts_are_dense_early_and_end_at_the_last_answer() -> None:
+    counts = answer_counts(333)
+    assert counts[:40] == tuple(range(1, 41)) and counts[-1] == 333
+    assert list(counts) == sorted(set(counts))
+
+
+def test_an_answers_run_is_deterministic_and_reaches_the_truth_with_perfect_answers() -> None:
+    cell = AnswersCell("pushing", 13.3, 4, "mistake", 0.0, "information_gain", "kind", 12)
+    first, second = run_answers(cell), run_answers(cell)
+    pd.testing.assert_frame_equal(first, second)
+    errors = first[first.metric == "param_error"].set_index("episode").value
+    assert errors.loc[12] <= 0.25
+    assert set(first.told) == {"kind"} and set(first.part) == {"answers"}
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (dict(teachers=("mistake",)), "teachers"),
+        (dict(noise_levels=(0.2, 0.2)), "repeat"),
+        (dict(noise_levels=(0.5,)), "noise_levels"),
+        (dict(methods=("pesi", "osi")), "methods"),
+        (dict(task_rules=("bisect",)), "task_rules"),
+        (dict(checkpoints=(5, 66)), "checkpoints"),
+        (dict(checkpoints=(0, 20, 10, 66)), "checkpoints"),
+        (dict(domains=()), "domains"),
+    ],
+)
+def test_the_config_refuses_bad_settings_by_name(change: dict[str, object], match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        AnswersConfig(**change)  # type: ignore[arg-type]
+
+
+def test_told_is_the_bayesian_learners_alone_and_belief_sampling_is_pesis() -> None:
+    with pytest.raises(ValueError, match="told"):
+        SIRun("wiping", "pesi", 0.7, told="model")
+    with pytest.raises(ValueError, match="told"):
+        SIRun("wiping", "bayes", 0.7, told="everything")
+    with pytest.raises(ValueError, match="belief"):
+        SIRun("wiping", "bayes", 0.7, fine_tuning=FineTuning(candidate_sampling="belief"))
+    assert SIRun("wiping", "bayes", 0.7, episodes=20, checkpoints=(0, 5, 20)).evaluated_at == (0, 5, 20)
+    assert SIRun("wiping", "pesi", 0.7, episodes=66, eval_every=33).evaluated_at == (0, 33, 66)
