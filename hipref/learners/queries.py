@@ -78,24 +78,46 @@ def _entropy(p: np.ndarray, axis: int) -> np.ndarray:
 def pair_scores(
     rule: str, candidates: CandidateSet, cells: np.ndarray, beliefs: Sequence[tuple[AnswerModel, np.ndarray]]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Every pair's score under `rule` ('information_gain' or 'volume_removal'), for a belief given as
-    (answer model, weights over `cells`) terms whose weights sum to one over all terms: (pairs, scores)."""
+    """The score under `rule` ('information_gain' or 'volume_removal') of the pairs worth asking, for a
+    belief given as (answer model, weights over `cells`) terms whose weights sum to one over all terms:
+    (pairs, scores). Once the belief is narrow, only pairs whose midpoint lies within its central 99.8 % are
+    scored: elsewhere nearly every model predicts the answer, which then tells almost nothing."""
     check_choice("rule", rule, ("information_gain", "volume_removal"))
-    mixture: np.ndarray | None = None
-    conditional = np.zeros(0)
     pairs = all_pairs(candidates.size)
+    asked = _worth_asking(candidates, cells, beliefs, pairs)
+    mixture = np.zeros((pairs.shape[0] if asked is None else asked.size, 4))
+    conditional = np.zeros(mixture.shape[0])
     for model, weights in beliefs:
         table = pair_table(candidates, cells, model)
-        predicted = table.probs @ weights  # (P, outcomes)
-        padded = np.zeros((predicted.shape[0], 4))
-        padded[:, table.outcomes] = predicted
-        mixture = padded if mixture is None else mixture + padded
-        term = table.entropy @ weights
-        conditional = term if conditional.size == 0 else conditional + term
-    assert mixture is not None
+        probs, entropy = (
+            (table.probs, table.entropy) if asked is None else (table.probs[asked], table.entropy[asked])
+        )
+        mixture[:, table.outcomes] += probs @ weights  # (P, outcomes)
+        conditional += entropy @ weights
+    if asked is not None:
+        pairs = pairs[asked]
     if rule == "volume_removal":
         return pairs, 1.0 - (mixture**2).sum(axis=1)
     return pairs, _entropy(mixture, axis=1) - conditional
+
+
+def _worth_asking(
+    candidates: CandidateSet,
+    cells: np.ndarray,
+    beliefs: Sequence[tuple[AnswerModel, np.ndarray]],
+    pairs: np.ndarray,
+    narrow: float = 0.25,
+) -> np.ndarray | None:
+    """Indices of the pairs whose midpoint lies within the belief's central 99.8 %, if they are fewer than
+    `narrow` of all pairs (None: score them all, which costs less than selecting)."""
+    marginal = np.sum([weights for _, weights in beliefs], axis=0)
+    cumulative = np.cumsum(marginal) / marginal.sum()
+    low = cells[min(int(np.searchsorted(cumulative, 0.001)), cells.size - 1)]
+    high = cells[min(int(np.searchsorted(cumulative, 0.999)), cells.size - 1)]
+    midpoints = candidates.values[pairs].mean(axis=1)
+    spread = candidates.resolution
+    asked = np.flatnonzero((midpoints >= low - spread) & (midpoints <= high + spread))
+    return asked if 0 < asked.size < narrow * pairs.shape[0] else None
 
 
 def choose_pair(
