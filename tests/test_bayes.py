@@ -270,3 +270,14 @@ def test_with_sis_prior_and_no_answer_the_posterior_is_sis_distribution() -> Non
     told = BayesLearner(GRID, BayesConfig(prior="si", answer_models=(AnswerModel(),)), seed=0, si_model=model)
     told.tell(PreferenceQuery((0.6, 0.8), features=np.zeros(0)), 1)
     assert told.distribution(tau)[told.posterior.cells > 0.7 + 1e-9].sum() == 0.0
+
+
+def test_n_candidate_answers_update_the_posterior_as_eq_3_labels() -> None:
+    learner = BayesLearner(GRID, BayesConfig(n_candidates=3), seed=1)
+    teacher = ScriptedPreferenceTeacher(0.81, 0.0, np.random.default_rng(0), scale=0.4)
+    for _ in range(30):
+        query = learner.ask()
+        learner.tell(query, teacher.answer(query))
+    assert abs(learner.estimate() - 0.81) <= 2 * GRID.resolution
+    with pytest.raises(ValueError, match="pairs only"):
+        BayesLearner(GRID, BayesConfig(n_candidates=3, answer_models=(AnswerModel("distance"),)))

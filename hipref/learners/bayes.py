@@ -252,6 +252,11 @@ class BayesLearner:
                 f"n_candidates must be at most |Phi| = {self.candidates.size}, got {self.config.n_candidates}"
             )
         models = self.config.answer_models if self.config.answer_models is not None else model_family()
+        if self.config.n_candidates > 2:
+            # The distance-dependent confusion is defined on pairs alone.
+            models = tuple(m for m in models if m.kind != "distance")
+            if not models:
+                raise ValueError("the 'distance' answer model is for pairs only: n_candidates must be 2")
         self.posterior = PreferencePosterior(self.candidates, models, self.config.refine)
         # The same streams as PESILearner's: under 'uniform' the same queries from the same seed.
         query_seed, _, _ = np.random.SeedSequence(seed).spawn(3)
