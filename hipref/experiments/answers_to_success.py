@@ -344,7 +344,7 @@ def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame
     ]
     last = errors[errors["episode"] == errors["episode"].max()]
     final = last.groupby([*keys, "told"])["value"].mean().unstack("told")
-    out = answers.join(final, rsuffix="_error").reindex(columns=[*TOLD, *(f"{t}_error" for t in TOLD)])
+    out = answers.join(final.add_suffix("_error")).reindex(columns=[*TOLD, *(f"{t}_error" for t in TOLD)])
     reached = out["model"].notna()
     for told_ in ("kind", "nothing"):
         out[f"{told_}_ratio"] = np.where(
