@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import torch
 
+from hipref.learners.bayes import BayesLearner
 from hipref.teach import open_session
 from hipref.teach.app import (
     FeedbackApp,
@@ -54,7 +55,7 @@ def lines(path: Path) -> list[dict]:
 
 
 def test_an_answer_is_on_disk_before_the_learner_is_told(results, monkeypatch):
-    config = TeachConfig(**SMALL)
+    config = TeachConfig(**SMALL, learner="pesi", query_rule="uniform")
     session = open_session(config)
     teaching = PreferenceTeaching(config, session, render=False)
     told = []
@@ -71,8 +72,34 @@ def test_an_answer_is_on_disk_before_the_learner_is_told(results, monkeypatch):
     assert told == [1, 2, 3]
 
 
-def test_cant_tell_is_stored_without_a_label_and_not_told(results):
+def test_with_chosen_queries_the_learner_kept_is_the_one_the_stored_answers_make(results, monkeypatch):
+    # The next query is prepared for each possible answer on copies of the learner; the copy kept is the
+    # one of the answer given, once that answer is on disk: it is the learner the file alone rebuilds.
     config = TeachConfig(**SMALL)
+    session = open_session(config)
+    teaching = PreferenceTeaching(config, session, render=False)
+    for answer in ("left", "cant_tell", "right"):
+        before = teaching.learner
+        teaching.answer(answer, 1.0)
+        records = session.of_kind("preference")
+        assert records[-1]["answer"] == answer
+        assert same_learner(teaching.learner, replay(config, records, "bayes"))
+        assert teaching.learner is not before
+    # A failed write keeps the learner and the query: nothing is adopted from an answer not on disk.
+    shown, learner = teaching.current, teaching.learner
+
+    def fail(record):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(session, "append", fail)
+    with pytest.raises(OSError):
+        teaching.answer("left", 1.0)
+    assert teaching.current is shown and teaching.learner is learner
+    teaching.close()
+
+
+def test_cant_tell_is_stored_without_a_label_and_gives_pesi_none(results):
+    config = TeachConfig(**SMALL, learner="pesi", query_rule="uniform")
     teaching = PreferenceTeaching(config, open_session(config), render=False)
     teaching.answer("cant_tell", 2.5)
     teaching.answer("left", 1.0)
@@ -108,16 +135,26 @@ def test_the_labels_follow_the_sides_the_candidates_were_shown_on(results):
     assert sides == {(0, 1), (1, 0)}  # both placements occur: the sides are drawn, not fixed
 
 
-def test_replaying_a_session_rebuilds_the_live_learner_exactly(results):
-    config = TeachConfig(**SMALL)
+def same_learner(a, b) -> bool:
+    """Two learners in the same state: PESI's SI weights, or the Bayesian learner's posterior."""
+    if isinstance(a, BayesLearner):
+        return np.array_equal(a.posterior.log_likelihood, b.posterior.log_likelihood)
+    return states_equal(a.model, b.model)
+
+
+@pytest.mark.parametrize(
+    ("learner", "rule"), [("pesi", "uniform"), ("bayes", "information_gain"), ("pesi", "information_gain")]
+)
+def test_replaying_a_session_rebuilds_the_live_learner_exactly(results, learner, rule):
+    config = TeachConfig(**SMALL, learner=learner, query_rule=rule)
     session = open_session(config)
     preferences = PreferenceApp(PreferenceTeaching(config, session, render=False))
     answer_preferences_as_scripted(preferences, noise=0.3, seed=1)
     preferences.teaching.close()
     records = session.of_kind("preference")
     assert len(records) == config.preference_queries
-    replayed = replay(config, records, "pesi")
-    assert states_equal(replayed.model, preferences.teaching.learner.model)
+    replayed = replay(config, records, learner)
+    assert same_learner(replayed, preferences.teaching.learner)
     # A recorded teacher refuses a query the person was not shown.
     teacher = RecordedPreferenceTeacher(records)
     with pytest.raises(ValueError, match="was shown"):
@@ -125,7 +162,7 @@ def test_replaying_a_session_rebuilds_the_live_learner_exactly(results):
     facts = summary(session, config)
     assert facts["answers"] == config.preference_queries
     assert 0.0 <= facts["agreement_with_truth"] <= 1.0
-    assert {"pesi_error", "co_pesi_estimated_error", "osi_error", "marginal_likelihood"} <= facts.keys()
+    assert {"pesi_error", "co_pesi_estimated_error", "bayes_error", "osi_error"} <= facts.keys()
 
 
 def _other_query(record: dict):
@@ -173,7 +210,7 @@ def test_a_killed_session_resumes_where_it_stopped(results, tmp_path):
     live_feedback = FeedbackTeaching(config, straight)
     live_feedback.answer(1, 1.0)
     live_feedback.answer(-1, 1.0)
-    assert states_equal(resumed.learner.model, live.learner.model)
+    assert same_learner(resumed.learner, live.learner)
     assert resumed.current.query.candidates == live.current.query.candidates  # the next query is the same
     np.testing.assert_array_equal(resumed.current.query.features, live.current.query.features)
     assert resumed_feedback.state == live_feedback.state
@@ -239,8 +276,23 @@ def test_nothing_is_prepared_once_every_query_is_answered(results):
     teaching = PreferenceTeaching(config, open_session(config), render=False)
     teaching.answer("left", 1.0)
     teaching.answer("right", 1.0)
-    assert teaching.current is None and teaching._next is None  # no query beyond the planned ones
+    assert teaching.current is None and not teaching._next  # no query beyond the planned ones
     resumed = PreferenceTeaching(config, teaching.session, render=False)
-    assert resumed.current is None and resumed._next is None
+    assert resumed.current is None and not resumed._next
     for session in (teaching, resumed):
         session.close()
+
+
+def test_before_and_after_executes_the_task_with_both_estimates(results):
+    from hipref.teach.outcome import before_and_after
+
+    config = TeachConfig(**SMALL, true_parameter=0.62)
+    teaching = PreferenceTeaching(config, open_session(config), render=False)
+    for answer in ("left", "right"):
+        teaching.answer(answer, 1.0)
+    outcome = before_and_after(teaching, attempts=2)
+    assert outcome["estimate_before"] == teaching.initial_estimate == 0.7  # the prior's median: nothing heard
+    assert outcome["estimate_after"] == teaching.estimate()
+    assert outcome["error_before"] == pytest.approx(abs(0.7 - 0.62))
+    assert {outcome["success_before"], outcome["success_after"]} <= {0.0, 0.5, 1.0}
+    teaching.close()

@@ -1,11 +1,13 @@
-"""A person teaches the robot from JupyterLab (notebook 09): preferences for PESI, feedback for COACH.
+"""A person teaches the robot from JupyterLab (notebook 09): preferences for SI, feedback for COACH.
 
 - `config`: the session's parameters (`TeachConfig`).
 - `session`: the answers file, each answer written before the learner is told.
 - `preferences`, `feedback`: the learners with a person as teacher, resumable from the file.
 - `clips`: two clips side by side as a looping GIF.
 - `app`: the widgets, and the scripted stand-in that presses them.
-- `recorded`: a stored session as a teacher, replayed into PESI, CO-PESI and the noise estimators.
+- `recorded`: a stored session as a teacher, replayed into PESI, CO-PESI, the Bayesian learner and the noise
+  estimators.
+- `outcome`: the task executed with the estimate before and after a session.
 """
 
 from __future__ import annotations

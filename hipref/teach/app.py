@@ -132,7 +132,7 @@ class PreferenceApp(AnswerPanel):
         spec = domain_spec(teaching.config.domain)
         estimate = teaching.estimate()
         text = f"answered {teaching.answered} of {teaching.config.preference_queries}; "
-        text += f"SI's estimate of the {spec.parameter}: {estimate:.3f} {spec.unit}"
+        text += f"the learner's estimate of the {spec.parameter}: {estimate:.3f} {spec.unit}"
         if self.reveal_truth:
             text += f" (truth {teaching.truth:.3f}, error {abs(estimate - teaching.truth):.3f} {spec.unit})"
         return html.escape(text)

@@ -9,16 +9,20 @@ from typing import Any
 
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import PretrainData
+from hipref.learners.queries import QUERY_RULES
 from hipref.validation import check_choice, check_int, check_range
 
 TEACHERS: tuple[str, ...] = ("person", "scripted")
 """Who answers: a person at the widgets, or a scripted stand-in that presses the same buttons."""
 
+LEARNERS: tuple[str, ...] = ("bayes", "pesi")
+"""Who is told the preferences: notebook 12's Bayesian learner (told nothing of the teacher) or PESI."""
+
 
 @dataclass(frozen=True)
 class TeachConfig:
-    """A session: preferences for PESI (Algorithm 2) in one environment, then one feedback episode of
-    tabular COACH on the wiping grid (Eq. 1)."""
+    """A session: preferences for a learner of SI (the Bayesian learner of notebook 12, or PESI, Algorithm
+    2) in one environment, then one feedback episode of tabular COACH on the wiping grid (Eq. 1)."""
 
     teacher: str = "scripted"
     """'person' (answer with the mouse or the keys) or 'scripted' (a stand-in presses the buttons: how
@@ -31,7 +35,13 @@ class TeachConfig:
     seed: int = 0
     """Seed of the queries, the layouts, the sides the candidates are shown on and the stand-in."""
     preference_queries: int = 6
-    """Preference queries planned (PESI's learning episodes)."""
+    """Preference queries planned (the learner's learning episodes)."""
+    learner: str = "bayes"
+    """Who is told the preferences, one of LEARNERS: 'bayes', the learner notebook 12 found to use every
+    answer (told nothing of the teacher, it weighs every teacher model), or 'pesi' (Algorithm 2)."""
+    query_rule: str = "information_gain"
+    """How the next pair is chosen (`hipref.learners.queries`): 'information_gain' (the pair whose answer
+    tells most), 'thompson', 'volume_removal', or 'uniform' (Algorithm 2's uniform draws)."""
     feedback_steps: int = 6
     """Length in high-level steps of the feedback episode (A.7 allows 290; a person's episode is short)."""
     desk_height: float = 0.7
@@ -59,6 +69,8 @@ class TeachConfig:
         check_range("true_parameter", self.true_parameter, candidates.low, candidates.high)
         check_int("seed", self.seed, 0)
         check_int("preference_queries", self.preference_queries, 1)
+        check_choice("learner", self.learner, LEARNERS)
+        check_choice("query_rule", self.query_rule, QUERY_RULES)
         check_int("feedback_steps", self.feedback_steps, 1)
         heights = domain_spec("wiping").candidates
         check_range("desk_height", self.desk_height, heights.low, heights.high)

@@ -1,20 +1,25 @@
-"""PESI (Algorithm 2) with a person as the teacher: queries shown as two clips, answers stored, then told.
+"""Preferences with a person as the teacher: queries shown as two clips, answers stored, then told.
 
-Each query is what `PESILearner.ask` draws: two candidates from Phi and a slice tau of the clip pi^l
-executes with one of them. The person sees the clips of both candidates from one layout, side by side and
-looping, on sides drawn at random (the candidates' values are never shown: the person judges the motion),
-and answers 'left', 'right' or "can't tell". The answer is appended to the session file before PESI is
-told; "can't tell" is stored but gives PESI no label (Eq. 2 has no y for it).
+The learner is notebook 12's Bayesian learner (by default) or PESI (Algorithm 2). Each query is two
+candidates from Phi and a slice tau of the clip pi^l executes with one of them. The person sees the clips
+of both candidates from one layout, side by side and looping, on sides drawn at random (the candidates'
+values are never shown: the person judges the motion), and answers 'left', 'right' or "can't tell". The
+answer is appended to the session file before the learner is told; "can't tell" is stored and told as
+'equally good' (PESI has no label for it and only counts it; the Bayesian learner reads it as the truth
+lying near the pair's midpoint).
 
-So that the next pair is on screen as soon as the person answers, query k + 1 is executed and rendered in
-a background thread while the person watches query k: the learner is asked one query ahead. With
-Algorithm 2's uniformly drawn candidates a query does not depend on the answers, so this changes nothing
-but the waiting. Resuming replays the stored answers in the same order (ask k + 1, then tell k) with the
-stored slices, without physics, and rebuilds the learner exactly (`tests/test_teach_session.py`).
+So that the next pair is on screen as soon as the person answers, it is executed and rendered in a
+background thread while the person watches the current one. With uniformly drawn candidates the next
+query does not depend on the answer, so it is prepared once, the learner being asked one query ahead. With
+a chosen query rule it does: the next query is prepared for each possible answer ('left' and 'right'
+first), each on a copy of the learner and of the session's random streams, and the copy of the answer
+given is kept. Resuming replays the stored answers in the live order with the stored slices, without
+physics, and rebuilds the learner exactly (`tests/test_teach_session.py`).
 """
 
 from __future__ import annotations
 
+import copy
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -25,19 +30,24 @@ import numpy as np
 from hipref.envs.task import Clip, Layout, Task, clip, probe_slice
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
+from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.pesi import PESIConfig, PESILearner
+from hipref.learners.sysid import SIModel
 from hipref.seeds import integer_seed
 from hipref.teach.clips import side_by_side_gif
 from hipref.teach.config import TeachConfig
 from hipref.teach.session import SessionFile
-from hipref.teachers.preference import PreferenceQuery
+from hipref.teachers.preference import EQUAL, PreferenceQuery
 from hipref.validation import check_choice
 
 ANSWERS: tuple[str, ...] = ("left", "right", "cant_tell")
 """What a person may answer to a preference query."""
 SIDES: tuple[str, ...] = ("left", "right")
 EVALUATION_SLICES = 3
-"""Probing slices the running estimate is the mean of (SI's multi-slice estimate)."""
+"""Probing slices PESI's running estimate is the mean of (SI's multi-slice estimate)."""
+
+Learner = PESILearner | BayesLearner
+"""A learner a session can tell its preferences."""
 
 
 class SessionStreams(NamedTuple):
@@ -47,17 +57,44 @@ class SessionStreams(NamedTuple):
     layouts: np.random.SeedSequence
     sides: np.random.SeedSequence
     evaluation: np.random.SeedSequence
+    slices: np.random.SeedSequence
+    """Where a slice is cut from a clip when the learner asked without observing one (a chosen query)."""
 
 
 def session_streams(config: TeachConfig) -> SessionStreams:
-    return SessionStreams(*np.random.SeedSequence([config.seed, 9]).spawn(4))
+    return SessionStreams(*np.random.SeedSequence([config.seed, 9]).spawn(5))
+
+
+def make_learner(config: TeachConfig, model: SIModel, learner: str | None = None) -> Learner:
+    """The session's learner (`config.learner`, or `learner`) with its query rule, seeded by the session."""
+    spec = domain_spec(config.domain)
+    seed = integer_seed(session_streams(config).learner)
+    if (learner or config.learner) == "bayes":
+        return BayesLearner(spec.candidates, BayesConfig(query_rule=config.query_rule), seed, si_model=model)
+    pesi = PESIConfig(
+        batch_size=spec.batch_size, history=config.data.history, candidate_sampling=config.query_rule
+    )
+    return PESILearner(model, pesi, seed)
 
 
 def evaluation_slices(config: TeachConfig, task: Task) -> np.ndarray:
-    """The probing slices the session's running estimate is read on (SI's multi-slice estimate)."""
+    """The probing slices PESI's running estimate is read on (SI's multi-slice estimate)."""
     rng = np.random.default_rng(session_streams(config).evaluation)
     h = config.data.history
     return np.stack([probe_slice(task, config.true_parameter, h, rng) for _ in range(EVALUATION_SLICES)])
+
+
+def running_estimate(learner: Learner, evaluation: np.ndarray) -> float:
+    """What the session's learner would give the controller: the Bayesian learner's posterior median, or
+    PESI's SI read on the session's probing slices."""
+    if isinstance(learner, BayesLearner):
+        return learner.estimate()
+    return float(learner.model.predict(evaluation).mean())
+
+
+def tell(learner: Learner, query: PreferenceQuery, label: int | None) -> None:
+    """Tell `learner` an answer: its label, or "can't tell" as 'equally good'."""
+    learner.tell(query, EQUAL if label is None else label)
 
 
 @dataclass(frozen=True)
@@ -67,7 +104,7 @@ class ShownQuery:
     number: int
     """Its place in the session, from 0."""
     query: PreferenceQuery
-    """What PESI asked: the candidates (in the learner's order) and tau."""
+    """What the learner asked: the candidates (in the learner's order)."""
     clip: Clip
     """The clip tau was cut from."""
     order: tuple[int, ...]
@@ -87,8 +124,20 @@ class ShownQuery:
         return SIDES[self.order.index(candidate)]
 
 
+@dataclass
+class Asker:
+    """What asking a query draws from: the learner and the session's random streams of layouts, sides and
+    slices. Copied whole to prepare the query after each possible answer."""
+
+    learner: Learner
+    layouts: np.random.Generator
+    sides: np.random.Generator
+    slices: np.random.Generator
+
+
 class PreferenceTeaching:
-    """A session's preference part: PESI, its queries, the stored answers and the running estimate."""
+    """A session's preference part: the learner, its queries, the stored answers and the running
+    estimate."""
 
     def __init__(self, config: TeachConfig, session: SessionFile, *, render: bool = True) -> None:
         self.config = config
@@ -100,15 +149,26 @@ class PreferenceTeaching:
         self.history = config.data.history
         streams = session_streams(config)
         model = pretrained_model(config.domain, config.data)
-        pesi = PESIConfig(batch_size=spec.batch_size, history=self.history)
-        self.learner = PESILearner(model, pesi, integer_seed(streams.learner))
-        self._layouts = np.random.default_rng(streams.layouts)
-        self._sides = np.random.default_rng(streams.sides)
+        self._asker = Asker(
+            make_learner(config, model),
+            np.random.default_rng(streams.layouts),
+            np.random.default_rng(streams.sides),
+            np.random.default_rng(streams.slices),
+        )
         self.evaluation = evaluation_slices(config, self.task)
+        self.initial_estimate = running_estimate(self._asker.learner, self.evaluation)
+        """The estimate before any answer: what the controller had without the person."""
+        # A chosen query rule makes the next query depend on the answer.
+        self.answer_dependent = config.query_rule != "uniform"
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hipref-next-query")
-        self._next: Future[ShownQuery] | None = None
+        self._next: dict[str, Future[tuple[Asker, ShownQuery]]] = {}
         self.current: ShownQuery | None = None
         self._replay(session.of_kind("preference"))
+
+    @property
+    def learner(self) -> Learner:
+        """The learner told the answers so far."""
+        return self._asker.learner
 
     @property
     def answered(self) -> int:
@@ -119,14 +179,14 @@ class PreferenceTeaching:
         return self.answered >= self.config.preference_queries
 
     def estimate(self) -> float:
-        """SI's running estimate: the mean of E_Pr[phi] over the session's probing slices."""
-        return float(self.learner.model.predict(self.evaluation).mean())
+        """The learner's running estimate (`running_estimate`)."""
+        return running_estimate(self.learner, self.evaluation)
 
     # --- asking ---------------------------------------------------------------------------------------
 
-    def _prepare(self, number: int, record: dict[str, Any] | None) -> ShownQuery:
-        """Ask PESI for query `number` (Algorithm 2, l.2-3); from `record`'s slice when it was answered."""
-        layout: Layout = self.task.sample_layout(self._layouts)
+    def _prepare(self, number: int, record: dict[str, Any] | None, asker: Asker) -> ShownQuery:
+        """Ask `asker`'s learner for query `number`; from `record`'s slice when it was answered."""
+        layout: Layout = self.task.sample_layout(asker.layouts)
         executed: list[Clip] = []
         if record is None:
 
@@ -136,15 +196,18 @@ class PreferenceTeaching:
 
         else:
             stored = record["clip"]
-            executed.append(
-                Clip(stored["estimate"], stored["periods"], stored["first"], np.array(stored["tau"]))
-            )
+            recorded = Clip(stored["estimate"], stored["periods"], stored["first"], np.array(stored["tau"]))
 
             def observe(phi: float, rng: np.random.Generator) -> np.ndarray:
-                return executed[0].replay(phi, self.history, rng)
+                executed.append(recorded)
+                return recorded.replay(phi, self.history, rng)
 
-        query = self.learner.ask(observe)
-        order = tuple(int(i) for i in self._sides.permutation(len(query.candidates)))
+        query = asker.learner.ask(observe)
+        if not executed:
+            # A learner asking by a chosen rule takes no slice; one is cut for the record, so that every
+            # learner can be replayed from the session (`hipref.teach.recorded`).
+            observe(query.candidates[0], asker.slices)
+        order = tuple(int(i) for i in asker.sides.permutation(len(query.candidates)))
         if record is not None and (
             list(query.candidates) != record["candidates"] or list(order) != record["order"]
         ):
@@ -163,38 +226,62 @@ class PreferenceTeaching:
                 animation = side_by_side_gif(frames, self.config.fps)  # type: ignore[arg-type]
         return ShownQuery(number, query, executed[0], order, animation)
 
+    def prepare_apart(self, number: int) -> ShownQuery:
+        """Query `number` asked, executed and rendered on a copy of the session's learner and streams,
+        nothing kept: what a query costs when nothing was prepared ahead (`hipref.bench.teach`)."""
+        return self._prepare(number, None, copy.deepcopy(self._asker))
+
+    def _branch(self, asker: Asker, shown: ShownQuery, answer: str | None) -> tuple[Asker, ShownQuery]:
+        """The query after `shown` on `asker` (a copy), told `answer` to `shown` first when it matters."""
+        if answer is not None:
+            tell(asker.learner, shown.query, shown.label(answer))
+        return asker, self._prepare(shown.number + 1, None, asker)
+
     def _prefetch(self) -> None:
-        """Start executing and rendering the query after the current one, if the session plans one."""
-        self._next = None
-        if self.current is not None and self.current.number + 1 < self.config.preference_queries:
-            self._next = self._executor.submit(self._prepare, self.current.number + 1, None)
+        """Start preparing the query after the current one, if the session plans one: once, or for each
+        possible answer (on copies) when the next query depends on it."""
+        self._next = {}
+        if self.current is None or self.current.number + 1 >= self.config.preference_queries:
+            return
+        if not self.answer_dependent:
+            # Asked one ahead on the live learner; it is told the current answer once this is done.
+            future = self._executor.submit(self._branch, self._asker, self.current, None)
+            self._next = dict.fromkeys(ANSWERS, future)
+            return
+        for answer in ANSWERS:
+            branch = copy.deepcopy(self._asker)
+            self._next[answer] = self._executor.submit(self._branch, branch, self.current, answer)
 
     def _replay(self, records: list[dict[str, Any]]) -> None:
-        """Rebuild PESI from the stored answers, in the live order: ask k + 1, then tell k."""
-        if records:
-            self.current = self._prepare(0, records[0])
+        """Rebuild the learner from the stored answers, in the live order: ask k + 1 then tell k (uniform
+        queries), or tell k then ask k + 1 (a chosen rule)."""
+        planned = self.config.preference_queries
+        if self.answer_dependent:
+            for k, record in enumerate(records):
+                shown = self._prepare(k, record, self._asker)
+                tell(self.learner, shown.query, shown.label(record["answer"]))
+            following = len(records)
+            self.current = self._prepare(following, None, self._asker) if following < planned else None
+        elif records:
+            self.current = self._prepare(0, records[0], self._asker)
             for k, record in enumerate(records):
                 following = k + 1
                 upcoming = None
-                if following < self.config.preference_queries:
+                if following < planned:
                     stored = records[following] if following < len(records) else None
-                    upcoming = self._prepare(following, stored)
-                self._tell(self.current, record["answer"])
+                    upcoming = self._prepare(following, stored, self._asker)
+                assert self.current is not None
+                tell(self.learner, self.current.query, self.current.label(record["answer"]))
                 self.current = upcoming
-        elif self.config.preference_queries > 0:
-            self.current = self._prepare(0, None)
+        else:
+            self.current = self._prepare(0, None, self._asker)
         self._prefetch()
 
     # --- answering ------------------------------------------------------------------------------------
 
-    def _tell(self, shown: ShownQuery, answer: str) -> None:
-        label = shown.label(answer)
-        if label is not None:
-            self.learner.tell(shown.query, label)
-
     def answer(self, answer: str, seconds: float) -> None:
-        """The person's `answer` to the current query after `seconds`: stored, then told to PESI; the next
-        query (already being prepared) becomes current."""
+        """The person's `answer` to the current query after `seconds`: stored, then told to the learner;
+        the next query (already being prepared) becomes current."""
         check_choice("answer", answer, ANSWERS)
         shown = self.current
         if shown is None:
@@ -219,16 +306,25 @@ class PreferenceTeaching:
                 },
             }
         )
-        upcoming = self._next.result() if self._next is not None else None
-        self._tell(shown, answer)
-        self.current = upcoming
+        branch = self._next.get(answer)
+        for other in self._next.values():
+            if other is not branch:
+                other.cancel()
+        if branch is None:  # the last planned query
+            tell(self.learner, shown.query, shown.label(answer))
+            self.current = None
+        else:
+            asker, upcoming = branch.result()
+            if not self.answer_dependent:
+                tell(asker.learner, shown.query, shown.label(answer))
+            self._asker, self.current = asker, upcoming
         self._prefetch()
 
     def wait_ready(self) -> float:
-        """Block until the query after the current one is prepared; the seconds waited."""
+        """Block until the query after the current one is prepared (for every answer); the seconds waited."""
         start = time.perf_counter()
-        if self._next is not None:
-            self._next.result()
+        for future in self._next.values():
+            future.result()
         return time.perf_counter() - start
 
     def close(self) -> None:

@@ -2,7 +2,7 @@
 
 `RecordedPreferenceTeacher` answers each query with the label the session stored for it, as the scripted
 teachers answer theirs, after checking that the query is the one the person was shown. `replay` rebuilds a
-learner of the session's environment from the stored slices (no physics): PESI, as in the session,
+learner of the session's environment from the stored queries and slices (no physics): PESI, as in the session,
 CO-PESI with its noise level estimated (A.9), which a person's unknown flip rate calls for, or the Bayesian
 learner told nothing of the teacher (`hipref.learners.bayes`), which asks the same queries from the same seed
 and also reads "can't tell" (the truth near the pair's midpoint). `summary` reads
@@ -18,19 +18,18 @@ from typing import Any
 
 import numpy as np
 
-from hipref.envs.task import Clip
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
-from hipref.learners.bayes import BayesConfig, BayesLearner
+from hipref.learners.bayes import BayesLearner
 from hipref.learners.coteaching import CoPESIConfig, EstimatedNoiseCoPESILearner
 from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
 from hipref.learners.noise_rate import likelihood_noise, repeated_pair_noise
-from hipref.learners.pesi import PESIConfig, PESILearner
+from hipref.learners.pesi import PESILearner
 from hipref.seeds import integer_seed
 from hipref.teach.config import TeachConfig
-from hipref.teach.preferences import evaluation_slices, session_streams
+from hipref.teach.preferences import Learner, evaluation_slices, make_learner, session_streams, tell
 from hipref.teach.session import SessionFile
-from hipref.teachers.preference import EQUAL, PreferenceQuery, pair_labels
+from hipref.teachers.preference import PreferenceQuery, pair_labels
 from hipref.validation import check_choice
 
 REPLAYED: tuple[str, ...] = ("pesi", "co_pesi_estimated", "bayes")
@@ -60,42 +59,29 @@ class RecordedPreferenceTeacher:
         return record["label"]
 
 
-def replay(
-    config: TeachConfig, records: Sequence[dict[str, Any]], method: str = "pesi"
-) -> PESILearner | BayesLearner:
-    """A learner of `method` told the session's answers in order, on the stored slices (no physics)."""
+def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str = "pesi") -> Learner:
+    """A learner of `method` told the session's answers in order, on the stored queries and slices (no
+    physics). It is told the queries the person answered, whichever learner asked them; a session's own
+    learner is rebuilt exactly."""
     check_choice("method", method, REPLAYED)
     spec = domain_spec(config.domain)
     model = pretrained_model(config.domain, config.data)
-    h = config.data.history
-    seed = integer_seed(session_streams(config).learner)
-    learner: PESILearner | BayesLearner
-    if method == "bayes":
-        learner = BayesLearner(spec.candidates, BayesConfig(), seed)
-    elif method == "pesi":
-        learner = PESILearner(
-            model,
-            PESIConfig(batch_size=spec.batch_size, history=h),
-            seed,
-        )
-    else:
+    learner: Learner
+    if method == "co_pesi_estimated":
         coteaching = CoPESIConfig(
             batch_size=spec.batch_size,
-            history=h,
+            history=config.data.history,
             start_size=spec.batch_size,
             refresh_frequency=spec.refresh_frequency,
         )
-        learner = EstimatedNoiseCoPESILearner(model, coteaching, seed)
-    teacher = RecordedPreferenceTeacher(records)
+        learner = EstimatedNoiseCoPESILearner(
+            model, coteaching, integer_seed(session_streams(config).learner)
+        )
+    else:
+        learner = make_learner(config, model, method)
     for record in records:
-        stored = record["clip"]
-        recorded = Clip(stored["estimate"], stored["periods"], stored["first"], np.array(stored["tau"]))
-        query = learner.ask(lambda phi, rng, recorded=recorded: recorded.replay(phi, h, rng))
-        label = teacher.answer(query)
-        if label is not None:
-            learner.tell(query, label)
-        elif isinstance(learner, BayesLearner):
-            learner.tell(query, EQUAL)
+        features = np.array(record["clip"]["tau"]) if isinstance(learner, PESILearner) else np.zeros(0)
+        tell(learner, PreferenceQuery(tuple(record["candidates"]), features=features), record["label"])
     return learner
 
 

@@ -1,0 +1,43 @@
+"""What a teaching session changed: the robot executing the task with the estimate before and after it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hipref.teach.clips import side_by_side_gif
+from hipref.teach.preferences import PreferenceTeaching
+from hipref.validation import check_int
+
+OUTCOME_STREAM = 10
+"""Salt of the seed sequence the attempts' layouts are drawn from (apart from every stream of the session)."""
+
+
+def before_and_after(teaching: PreferenceTeaching, attempts: int = 20) -> dict[str, float]:
+    """The estimate before any answer and now, their errors, and the task's success with each on the same
+    `attempts` layouts (MuJoCo, the real controllers)."""
+    check_int("attempts", attempts, 1)
+    task, truth = teaching.task, teaching.truth
+    rng = np.random.default_rng(np.random.SeedSequence([teaching.config.seed, OUTCOME_STREAM]))
+    layouts = [task.sample_layout(rng) for _ in range(attempts)]
+    result: dict[str, float] = {}
+    for when, estimate in (("before", teaching.initial_estimate), ("after", teaching.estimate())):
+        result[f"estimate_{when}"] = estimate
+        result[f"error_{when}"] = abs(estimate - truth)
+        result[f"success_{when}"] = float(
+            np.mean([task.rollout(truth, estimate, at).success for at in layouts])
+        )
+    return result
+
+
+def before_and_after_clip(teaching: PreferenceTeaching) -> bytes | None:
+    """The task executed from one layout with the estimate before the session (left) and now (right), a
+    looping GIF; None where no GL is."""
+    task, config = teaching.task, teaching.config
+    layout = task.sample_layout(np.random.default_rng(np.random.SeedSequence([config.seed, OUTCOME_STREAM])))
+    frames = [
+        task.clip_frames(teaching.truth, estimate, layout, config.frames)
+        for estimate in (teaching.initial_estimate, teaching.estimate())
+    ]
+    if any(f is None for f in frames):
+        return None
+    return side_by_side_gif(frames, config.fps)  # type: ignore[arg-type]
