@@ -188,7 +188,8 @@ class AnswersConfig(Protocol):
             levels = getattr(self, name)
             _check_set(name, levels, None)
             for level in levels:
-                check_range(name, level, 0.0, 0.5 - 1e-9)
+                if isinstance(level, bool) or not isinstance(level, int | float) or not 0.0 <= level < 0.5:
+                    raise ValueError(f"{name} must hold flip rates in [0, 0.5), got {level!r}")
         if not self.checkpoints or self.checkpoints[0] != 0 or self.checkpoints[-1] != self.episodes:
             raise ValueError(
                 f"checkpoints must run from 0 to episodes={self.episodes}, got {self.checkpoints!r}"
