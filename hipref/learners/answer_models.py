@@ -169,21 +169,21 @@ def told(teacher: TeacherModel, noise: float) -> AnswerModel:
     'told the true model' uses. The myopic teacher's picture has the stationary spread of its memory,
     glimpse_noise sqrt((1 - memory) / (1 + memory))."""
     check_range("noise", noise, 0.0, 1.0 - 1e-9)
-    spread = teacher.glimpse_noise * math.sqrt((1.0 - teacher.memory) / (1.0 + teacher.memory))
-    own = {
-        "oracle": {"kind": "flip"},
-        "mistake": {"kind": "flip"},
-        "stochastic": {"kind": "stochastic", "beta": teacher.beta},
-        "skip": {"kind": "skip", "skip_distance": teacher.skip_distance},
-        "equal": {"kind": "equal", "equal_margin": teacher.equal_margin},
-        "myopic": {"kind": "myopic", "spread": max(spread, 1e-9)},
-        "distance": {
-            "kind": "distance",
-            "confusion_max": teacher.confusion_max,
-            "confusion_width": teacher.confusion_width,
-        },
-    }[teacher.kind]
-    return AnswerModel(flip=noise, **own)  # type: ignore[arg-type]
+    base = AnswerModel(flip=noise)
+    if teacher.kind in ("oracle", "mistake"):
+        return base
+    if teacher.kind == "stochastic":
+        return replace(base, kind="stochastic", beta=teacher.beta)
+    if teacher.kind == "skip":
+        return replace(base, kind="skip", skip_distance=teacher.skip_distance)
+    if teacher.kind == "equal":
+        return replace(base, kind="equal", equal_margin=teacher.equal_margin)
+    if teacher.kind == "myopic":
+        spread = teacher.glimpse_noise * math.sqrt((1.0 - teacher.memory) / (1.0 + teacher.memory))
+        return replace(base, kind="myopic", spread=max(spread, 1e-9))
+    return replace(
+        base, kind="distance", confusion_max=teacher.confusion_max, confusion_width=teacher.confusion_width
+    )
 
 
 TOLD: tuple[str, ...] = ("model", "kind", "nothing")
