@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import time
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -162,6 +163,10 @@ class PreferenceTeaching:
         self.answer_dependent = config.query_rule != "uniform"
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hipref-next-query")
         self._next: dict[str, Future[tuple[Asker, ShownQuery]]] = {}
+        self._answers_given = 0
+        self._last_answer: str | None = None
+        """Answers given in this process, and the last: a query prepared for another answer than the one
+        given is not rendered."""
         self.current: ShownQuery | None = None
         self._replay(session.of_kind("preference"))
 
@@ -184,8 +189,15 @@ class PreferenceTeaching:
 
     # --- asking ---------------------------------------------------------------------------------------
 
-    def _prepare(self, number: int, record: dict[str, Any] | None, asker: Asker) -> ShownQuery:
-        """Ask `asker`'s learner for query `number`; from `record`'s slice when it was answered."""
+    def _prepare(
+        self,
+        number: int,
+        record: dict[str, Any] | None,
+        asker: Asker,
+        wanted: Callable[[], bool] = lambda: True,
+    ) -> ShownQuery:
+        """Ask `asker`'s learner for query `number`; from `record`'s slice when it was answered. Its clips
+        are rendered unless `wanted()` says by then that the query will not be shown."""
         layout: Layout = self.task.sample_layout(asker.layouts)
         executed: list[Clip] = []
         if record is None:
@@ -217,7 +229,7 @@ class PreferenceTeaching:
                 f"{list(order)}: the file was written by another version of the study"
             )
         animation = None
-        if record is None and self.render:
+        if record is None and self.render and wanted():
             frames = [
                 self.task.clip_frames(self.truth, query.candidates[i], layout, self.config.frames)
                 for i in order
@@ -231,11 +243,17 @@ class PreferenceTeaching:
         nothing kept: what a query costs when nothing was prepared ahead (`hipref.bench.teach`)."""
         return self._prepare(number, None, copy.deepcopy(self._asker))
 
-    def _branch(self, asker: Asker, shown: ShownQuery, answer: str | None) -> tuple[Asker, ShownQuery]:
+    def _branch(
+        self, asker: Asker, shown: ShownQuery, answer: str | None, answers_given: int
+    ) -> tuple[Asker, ShownQuery]:
         """The query after `shown` on `asker` (a copy), told `answer` to `shown` first when it matters."""
         if answer is not None:
             tell(asker.learner, shown.query, shown.label(answer))
-        return asker, self._prepare(shown.number + 1, None, asker)
+
+        def wanted() -> bool:  # still possible: not yet answered, or answered `answer`
+            return self._answers_given == answers_given or self._last_answer in (answer, None)
+
+        return asker, self._prepare(shown.number + 1, None, asker, wanted)
 
     def _prefetch(self) -> None:
         """Start preparing the query after the current one, if the session plans one: once, or for each
@@ -245,12 +263,14 @@ class PreferenceTeaching:
             return
         if not self.answer_dependent:
             # Asked one ahead on the live learner; it is told the current answer once this is done.
-            future = self._executor.submit(self._branch, self._asker, self.current, None)
+            future = self._executor.submit(self._branch, self._asker, self.current, None, self._answers_given)
             self._next = dict.fromkeys(ANSWERS, future)
             return
         for answer in ANSWERS:
             branch = copy.deepcopy(self._asker)
-            self._next[answer] = self._executor.submit(self._branch, branch, self.current, answer)
+            self._next[answer] = self._executor.submit(
+                self._branch, branch, self.current, answer, self._answers_given
+            )
 
     def _replay(self, records: list[dict[str, Any]]) -> None:
         """Rebuild the learner from the stored answers, in the live order: ask k + 1 then tell k (uniform
@@ -307,6 +327,10 @@ class PreferenceTeaching:
             }
         )
         branch = self._next.get(answer)
+        # The branches of the other answers stop before rendering their clips. The answer is set before the
+        # count, which `wanted` reads first: a branch that sees the new count sees the new answer.
+        self._last_answer = answer if self.answer_dependent else None
+        self._answers_given += 1
         for other in self._next.values():
             if other is not branch:
                 other.cancel()
