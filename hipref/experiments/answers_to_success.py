@@ -42,6 +42,7 @@ from hipref.validation import check_choice, check_int, check_range
 TASK_METHODS: tuple[str, ...] = ("pesi", "co_pesi", "bayes", "bayes_si")
 """The learners of the task part: the paper's two and the Bayesian one, from a uniform prior or from SI's
 Pr(phi | tau) on each evaluation slice."""
+assert set(TASK_METHODS) <= set(METHODS)
 
 CONSISTENT = 0.9
 """'Reaches one grid step' means: in at least this share of the environments."""
@@ -272,8 +273,6 @@ def run(config: AnswersConfig, **sweep: Any) -> pd.DataFrame:
     return rows
 
 
-assert set(TASK_METHODS) <= set(METHODS)
-
 SETTING = ["domain", "teacher", "noise", "query_rule", "told"]
 """What one curve of the answers part is the curve of."""
 
@@ -292,9 +291,8 @@ def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFra
         within = (wide <= phi.resolution * (1 + 1e-9)).mean(axis=0)
         failing = np.flatnonzero(within.to_numpy() < share)
         counts = within.index.to_numpy()
-        reached = counts[failing[-1] + 1] if failing.size and failing[-1] + 1 < counts.size else np.nan
-        if not failing.size:
-            reached = counts[0]
+        first_for_good = failing[-1] + 1 if failing.size else 0  # after the last count that falls short
+        reached = counts[first_for_good] if first_for_good < counts.size else np.nan
         floor = shannon_floor(phi.size, noise) if teacher == "mistake" else np.nan
         out.append((*setting, len(wide), float(reached), floor, float(reached) / floor))
     return pd.DataFrame(out, columns=[*SETTING, "environments", "answers", "floor", "ratio"])
