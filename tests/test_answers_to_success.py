@@ -77,7 +77,7 @@ def test_efficiency_finds_the_answers_the_bayesian_learner_needs_to_match_pesi()
         seed=0,
         ground_truth=0.7,
         metric="param_error",
-        told="nothing",
+        told="model",
         teacher="mistake",
         query_rule="uniform",
     )

@@ -135,13 +135,32 @@ def test_uniform_queries_are_pesis_queries_from_the_same_seed() -> None:
 
 
 def test_perfect_answers_with_chosen_queries_bisect_to_one_grid_step() -> None:
+    # Told the teacher never errs, six answers halve 40 steps of Phi below one: log2(40) = 5.3.
     for truth in (0.537, 0.70, 0.861):
-        learner = BayesLearner(GRID, BayesConfig(query_rule="information_gain"), seed=2)
+        config = BayesConfig(query_rule="information_gain", answer_models=(AnswerModel(),))
+        learner = BayesLearner(GRID, config, seed=2)
         teacher = ScriptedPreferenceTeacher(truth, 0.0, np.random.default_rng(0), scale=0.4)
-        for _ in range(8):
+        for _ in range(6):
             query = learner.ask()
             learner.tell(query, teacher.answer(query))
         assert abs(learner.estimate() - truth) <= GRID.resolution
+
+
+def test_information_gain_asks_about_phi_not_about_the_teacher() -> None:
+    # Two flip models (0 and 40 %) weighed alike on two cells, each side of 0.7. A pair whose midpoint lies
+    # between the cells tells phi; a pair with both cells on one side tells only which model holds (the
+    # answer is right for sure under one, in 60 % under the other), which is worth nothing here.
+    posterior = PreferencePosterior(GRID, (AnswerModel(flip=0.0), AnswerModel(flip=0.4)))
+    cells = posterior.query_points
+    weights = np.zeros(cells.size)
+    weights[[np.argmin(np.abs(cells - 0.65)), np.argmin(np.abs(cells - 0.75))]] = 0.25
+    beliefs = [(posterior.models[0], weights), (posterior.models[1], weights)]
+    pairs, scores = pair_scores("information_gain", GRID, cells, beliefs)
+    midpoints = GRID.values[pairs].mean(axis=1)
+    separating = (midpoints > 0.65) & (midpoints < 0.75)
+    assert scores[separating].min() > 0.1
+    on_a_cell = np.isclose(midpoints, 0.65) | np.isclose(midpoints, 0.75)
+    assert np.abs(scores[~separating & ~on_a_cell]).max() < 1e-9
 
 
 def test_told_maps_each_scripted_teacher_to_its_answer_model() -> None:

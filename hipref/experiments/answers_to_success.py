@@ -203,14 +203,14 @@ class AnswersConfig(Protocol):
         return [(truth, seed) for truth, seed in self.environments(domain) if seed < self.task_seeds]
 
     def answers_cells(self) -> list[AnswersCell]:
-        """The answers part: per environment, the paper's teacher at every flip rate under every rule, told
-        its model, its kind or nothing; every other teacher under information gain, told its model or
-        nothing."""
+        """The answers part: per environment, the paper's teacher at every flip rate: under uniform pairs
+        told its model (as PESI is told the flip rate), under a chosen rule told its model, its kind or
+        nothing; every other teacher under information gain, told its model or nothing."""
         settings = [
             ("mistake", e, rule, told)
             for e in self.noise_levels
             for rule in self.answer_rules
-            for told in TOLD
+            for told in (("model",) if rule == "uniform" else TOLD)
         ]
         settings += [
             (t, 0.0, "information_gain", told) for t in self.teachers for told in ("model", "nothing")
@@ -300,8 +300,9 @@ def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFra
 
 def efficiency(rows: pd.DataFrame) -> pd.DataFrame:
     """PESI's information efficiency: per domain and flip rate of both parts, for each checkpoint n of the
-    task part, the fewest answers m after which the Bayesian learner (uniform queries, model not told) has
-    a mean error at most PESI's mean error after n (same environments, uniform queries), and m / n."""
+    task part, the fewest answers m after which the Bayesian learner (uniform queries, told the flip rate as
+    PESI is) has a mean error at most PESI's mean error after n (same environments, uniform queries), and
+    m / n."""
     task = rows[
         (rows["part"] == "task") & (rows["metric"] == "param_error") & (rows["query_rule"] == "uniform")
     ]
@@ -310,7 +311,7 @@ def efficiency(rows: pd.DataFrame) -> pd.DataFrame:
         & (rows["metric"] == "param_error")
         & (rows["teacher"] == "mistake")
         & (rows["query_rule"] == "uniform")
-        & (rows["told"] == "nothing")
+        & (rows["told"] == "model")
     ]
     out = []
     for (domain, noise), pesi in task[task["method"] == "pesi"].groupby(["domain", "noise"], sort=False):

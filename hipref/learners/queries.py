@@ -7,14 +7,16 @@ models (`hipref.learners.answer_models`) and picks two candidates of Phi:
   the paper's studies keep their draws);
 - 'thompson': two draws of phi from the belief, each rounded to its nearest candidate (redrawn while equal);
 - 'information_gain': the pair maximising the mutual information between its answer and phi,
-  I = H(sum_c w_c P(y | c)) - sum_c w_c H(P(y | c)): under the flip model, probabilistic bisection (the
-  pair whose midpoint is the belief's median); under the distance model, pairs a teacher can tell apart;
+  I = H(sum_c w_c P(y | c)) - sum_c w_c H(P(y | c)), with P(y | c) averaged over the answer models the
+  belief weighs at c (what the answer tells of phi, not of the teacher): under the flip model,
+  probabilistic bisection (the pair whose midpoint is the belief's median); under the distance model,
+  pairs a teacher can tell apart;
 - 'volume_removal': APReL's expected volume removed, 1 - sum_y P(y)^2 (Sadigh et al. 2017), which ignores
   how noisy each answer is.
 
 Ties (many pairs share a midpoint) are broken uniformly with the learner's rng. The likelihood of every
 pair at every cell is computed once per (candidates, cells, model) and kept (`pair_table`), so a choice
-costs a few matrix-vector products.
+costs a few array products over the pairs and the cells the belief holds.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import functools
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.special import entr
 
 from hipref.learners.answer_models import AnswerModel
 from hipref.learners.sysid import CandidateSet
@@ -36,6 +39,9 @@ CHOSEN: tuple[str, ...] = QUERY_RULES[1:]
 
 TIE = 1e-9
 """Scores within this of the best count as equal, and one of them is drawn."""
+
+SUPPORT = 1e-12
+"""Cells whose weight is below this share of the heaviest cell's are left out of a pair's score."""
 
 
 def all_pairs(size: int) -> np.ndarray:
@@ -56,7 +62,7 @@ class PairTable:
         self.outcomes = np.flatnonzero(kept)
         """Which of the four answers (first, second, skip, equal) the model can give."""
         self.probs = np.ascontiguousarray(probs[..., kept].transpose(0, 2, 1))  # (P, outcomes, C)
-        self.entropy = _entropy(probs[..., kept], axis=-1)  # (P, C)
+        self.entropy = entr(probs[..., kept]).sum(axis=-1)  # (P, C)
 
 
 @functools.lru_cache(maxsize=256)
@@ -69,36 +75,60 @@ def pair_table(candidates: CandidateSet, cells: np.ndarray, model: AnswerModel) 
     return _table(candidates, np.ascontiguousarray(cells, dtype=np.float64).tobytes(), model)
 
 
-def _entropy(p: np.ndarray, axis: int) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        terms = np.where(p > 0, -p * np.log(p), 0.0)
-    return terms.sum(axis=axis)
-
-
 def pair_scores(
     rule: str, candidates: CandidateSet, cells: np.ndarray, beliefs: Sequence[tuple[AnswerModel, np.ndarray]]
 ) -> tuple[np.ndarray, np.ndarray]:
     """The score under `rule` ('information_gain' or 'volume_removal') of the pairs worth asking, for a
     belief given as (answer model, weights over `cells`) terms whose weights sum to one over all terms:
     (pairs, scores). Once the belief is narrow, only pairs whose midpoint lies within its central 99.8 % are
-    scored: elsewhere nearly every model predicts the answer, which then tells almost nothing."""
+    scored: elsewhere nearly every model predicts the answer, which then tells almost nothing.
+
+    Information gain is about phi, not the answer model: with P(y, c) = sum_m w_mc P_m(y | c) and
+    w_c = sum_m w_mc, I(y; phi) = H(sum_c P(y, c)) - sum_c w_c H(P(y, c) / w_c), where the last sum is
+    -sum_yc P(y, c) log P(y, c) + sum_c w_c log w_c. Under one model it is sum_c w_c H(P(y | c)), read off
+    the model's table; under several, cells the belief gives no weight are left out."""
     check_choice("rule", rule, ("information_gain", "volume_removal"))
     pairs = all_pairs(candidates.size)
     asked = _worth_asking(candidates, cells, beliefs, pairs)
-    mixture = np.zeros((pairs.shape[0] if asked is None else asked.size, 4))
-    conditional = np.zeros(mixture.shape[0])
-    for model, weights in beliefs:
-        table = pair_table(candidates, cells, model)
+    if asked is not None:
+        pairs = pairs[asked]
+    tables = [pair_table(candidates, cells, model) for model, _ in beliefs]
+    if len(beliefs) == 1:
+        (table,), weights = tables, beliefs[0][1]
         probs, entropy = (
             (table.probs, table.entropy) if asked is None else (table.probs[asked], table.entropy[asked])
         )
-        mixture[:, table.outcomes] += probs @ weights  # (P, outcomes)
-        conditional += entropy @ weights
-    if asked is not None:
-        pairs = pairs[asked]
+        mixture = probs @ weights
+        conditional = entropy @ weights
+    else:
+        mixture, conditional = _mixed(tables, [weights for _, weights in beliefs], asked)
     if rule == "volume_removal":
         return pairs, 1.0 - (mixture**2).sum(axis=1)
-    return pairs, _entropy(mixture, axis=1) - conditional
+    return pairs, entr(mixture).sum(axis=1) - conditional
+
+
+def _mixed(
+    tables: list[PairTable], weights: list[np.ndarray], asked: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """P(y) of each pair (over the answers some model gives) and sum_c w_c H(P(y | c)) under the mixture of
+    several models' beliefs."""
+    outcomes = np.unique(np.concatenate([table.outcomes for table in tables]))
+    cell_weights = np.sum(weights, axis=0)
+    held = np.flatnonzero(cell_weights > SUPPORT * cell_weights.max())
+    size = tables[0].pairs.shape[0] if asked is None else asked.size
+    joint = np.zeros((size, outcomes.size, held.size))
+    term = np.empty_like(joint)
+    for table, weight in zip(tables, weights, strict=True):
+        probs = table.probs if asked is None else table.probs[asked]
+        if held.size < weight.size:
+            probs = probs[:, :, held]
+        if table.outcomes.size == outcomes.size:
+            joint += np.multiply(probs, weight[held], out=term)
+        else:
+            joint[:, np.searchsorted(outcomes, table.outcomes), :] += probs * weight[held]
+    held_weights = cell_weights[held]
+    conditional = entr(joint).sum(axis=(1, 2)) + held_weights @ np.log(held_weights)
+    return joint.sum(axis=2), conditional
 
 
 def _worth_asking(
