@@ -133,7 +133,7 @@ def _without_docstrings(tree: ast.Module) -> ast.Module:
                     and isinstance(statement.value.value, str)
                 )
             ]
-            node.body = kept or [ast.Pass()]  # type: ignore[attr-defined]
+            body[:] = kept or [ast.Pass()]
     return tree
 
 
@@ -223,10 +223,10 @@ def _rows_problem(rows: Any) -> str | None:
     return f"its rows lack the tidy column(s) {missing}" if missing else None
 
 
-def _load(path: Path, problem: Callable[[Any], str | None] | None = None) -> tuple[bool, Any]:
-    """Read a cache entry; (False, None) when absent, unreadable or, by `problem`, not what it should
-    hold, with a warning in the last two cases."""
-    if not path.exists():
+def _load(path: Path | None, problem: Callable[[Any], str | None] | None = None) -> tuple[bool, Any]:
+    """Read a cache entry; (False, None) when there is no cache (`path` None), the entry is absent,
+    unreadable or, by `problem`, not what it should hold, with a warning in the last two cases."""
+    if path is None or not path.exists():
         return False, None
     try:
         with path.open("rb") as f:
@@ -474,7 +474,7 @@ def cached_artefact(
         return _ARTEFACTS[key]
     directory = _resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
     path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
-    found, value = (False, None) if path is None else _load(path, problem)
+    found, value = _load(path, problem)
     if not found:
         value = build()
         reason = None if problem is None else problem(value)
@@ -505,7 +505,7 @@ def cached_prefix(
     if length < 0:
         raise ValueError(f"length must be at least 0, got {length}")
     key = _key(name, _describe(config))
-    held = _ARTEFACTS.get(key)
+    held: list[T] | None = _ARTEFACTS.get(key)
     if held is None or len(held) < length:
         directory = _resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
         path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
@@ -517,8 +517,10 @@ def cached_prefix(
                 return "an item fails its check"
             return None
 
-        found, held = (False, None) if path is None else _load(path, problem)
-        if not found or len(held) < length:
+        found, loaded = _load(path, problem)
+        if found and len(loaded) >= length:
+            held = loaded
+        else:
             held = build(length)
             reason = problem(held)
             if reason is not None or len(held) != length:
