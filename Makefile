@@ -45,7 +45,7 @@ else
 JOBS := 2
 endif
 
-.PHONY: install reproduce notebooks test lint pytest nbval lab bench
+.PHONY: install reproduce notebooks test lint typecheck pytest nbval lab bench
 
 install: $(VENV)/.installed
 
@@ -66,10 +66,14 @@ notebooks: install
 	$(call execute,quick,results/quick,notebooks,2,--committed)
 
 # In this order; `make nbval NOTEBOOKS=notebooks/06_noise_estimation.ipynb` checks a single notebook.
-test: lint pytest nbval
+test: lint typecheck pytest nbval
 
 lint: install
 	$(VENV)/bin/ruff check hipref tests notebooks
+
+# mypy over hipref/ (its settings in pyproject.toml); its cache in .mypy_cache, which git ignores.
+typecheck: install
+	$(VENV)/bin/mypy
 
 # On every core: the slowest tests wait on kernels, browsers and worker processes, and overlap well.
 pytest: install

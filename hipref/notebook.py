@@ -24,9 +24,12 @@ import difflib
 import types
 import typing
 from collections.abc import Mapping, MutableMapping
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
-Config = TypeVar("Config")
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+Config = TypeVar("Config", bound="DataclassInstance")
 
 Source = type | tuple[str, type]
 """Where parameters come from: a config dataclass, or (prefix, config) for parameters named prefix + field."""
@@ -73,7 +76,7 @@ def declared_types(*sources: Source) -> dict[str, Any]:
 def notebook_type(hint: Any) -> Any:
     """The annotation a parameters cell gives a config field of type `hint`: `tuple[X, ...]` is `list[X]`."""
     if typing.get_origin(hint) is tuple:
-        return list[typing.get_args(hint)[0]]
+        return types.GenericAlias(list, typing.get_args(hint)[0])
     return hint
 
 
@@ -194,7 +197,7 @@ def config_from(config: type[Config], values: Mapping[str, Any], prefix: str = "
 
     Building the config runs its validation, so a value out of range fails here, before any compute.
     """
-    fields = {field.name for field in dataclasses.fields(config)}  # type: ignore[arg-type]
+    fields = {field.name for field in dataclasses.fields(config)}
     kwargs = {
         name[len(prefix) :]: value
         for name, value in values.items()

@@ -100,8 +100,9 @@ def relative_text(text: str, replacements: Mapping[str, str]) -> str:
     return text
 
 
-def output_texts(output: dict[str, Any]) -> Iterator[tuple[dict[str, Any] | list[Any], str | int]]:
-    """(container, key) of every text of a cell output that may hold a path."""
+def output_texts(output: dict[str, Any]) -> Iterator[tuple[Any, str | int]]:
+    """(container, key) of every text of a cell output that may hold a path: a dict of the notebook's JSON
+    and its key, or a list and its index (Any: JSON's nodes are either)."""
     if output.get("output_type") == "stream":
         yield output, "text"
     elif output.get("output_type") == "error":
@@ -117,11 +118,11 @@ def relative_outputs(notebook: nbformat.NotebookNode, replacements: Mapping[str,
     for cell in notebook.cells:
         for output in cell.get("outputs", []):
             for container, key in output_texts(output):
-                value = container[key]  # type: ignore[index]
+                value = container[key]
                 if isinstance(value, list):
-                    container[key] = [relative_text(line, replacements) for line in value]  # type: ignore[index]
+                    container[key] = [relative_text(line, replacements) for line in value]
                 elif isinstance(value, str):
-                    container[key] = relative_text(value, replacements)  # type: ignore[index]
+                    container[key] = relative_text(value, replacements)
 
 
 def as_committed(notebook: nbformat.NotebookNode) -> None:

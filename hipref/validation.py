@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from typing import Any
 
 
@@ -66,7 +66,9 @@ def check_interval(
     (a, b) of finite numbers ordered a < b (a <= b when `point`) inside [low, high] (bounds excluded when
     `low_open`, `high_open`; an infinite bound is no bound)."""
     try:
-        a, b = (float(v) for v in value)  # type: ignore[attr-defined]
+        if not isinstance(value, Iterable):
+            raise TypeError(value)
+        a, b = (float(v) for v in value)
         ok = math.isfinite(a) and math.isfinite(b) and (a <= b if point else a < b)
         ok = ok and (a > low if low_open else a >= low) and (b < high if high_open else b <= high)
     except (TypeError, ValueError):

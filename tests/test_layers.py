@@ -1,9 +1,12 @@
-"""The package's layers: each imports only from the layers below it (read from the source, imports inside
-functions included)."""
+"""The package's floors: each room (a subpackage or a top-level module of hipref) imports only from the
+floors below it, read from the source (imports inside functions and under TYPE_CHECKING included), and what
+a room reaches through the modules it imports (package `__init__`s included) keeps learners free of physics
+and the sweep free of tasks."""
 
 from __future__ import annotations
 
 import ast
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -12,34 +15,134 @@ import hipref
 
 PACKAGE = Path(hipref.__file__).resolve().parent
 
-FORBIDDEN: dict[str, tuple[str, ...]] = {
-    "learners": ("mujoco", "hipref.envs", "hipref.sim", "hipref.control", "hipref.experiments"),
-    "teachers": ("mujoco", "hipref.envs", "hipref.learners", "hipref.experiments"),
-    "control": ("hipref.envs", "hipref.learners", "hipref.teachers", "hipref.experiments"),
-    "envs": ("hipref.learners", "hipref.teachers", "hipref.experiments"),
+FLOORS: tuple[tuple[str, ...], ...] = (
+    ("numerics", "seeds", "validation", "results", "plots", "kernel"),
+    ("sim", "teachers", "sweep", "verdicts", "notebook", "run_notebook"),
+    ("control", "learners"),
+    ("envs",),
+    ("experiments",),
+    ("teach",),
+    ("bench",),
+)
+"""The rooms of each floor, from the ground up: the foundations (seeds, checks, results, numerics); the
+scene, the teachers, the sweep, the verdicts and the notebooks' machinery; the controllers and the learners
+(no physics); the tasks; the studies that compose them; a person teaching in JupyterLab; the benchmarks.
+`hipref/__init__.py` is on the ground floor and imports only from it."""
+
+NEVER: dict[str, tuple[str, ...]] = {
+    "learners": ("hipref.envs", "hipref.sim", "hipref.control", "mujoco"),
+    "teachers": ("hipref.envs", "hipref.sim", "hipref.control", "mujoco"),
+    "sweep": ("hipref.envs", "mujoco"),
+    "control": ("hipref.teachers",),
+    "envs": ("hipref.teachers", "hipref.learners"),
 }
-"""Per subpackage, the modules it must not import: learners and teachers hold no physics, and nothing
-below the studies imports them."""
+"""Modules a room must not reach, directly or through what it imports, though they are below it: an
+algorithm holds no physics, the sweep runs any cell without loading a task, and the physics knows nothing of
+who teaches or learns."""
 
 
-def imported_modules(source: Path) -> set[str]:
-    names = set()
-    for node in ast.walk(ast.parse(source.read_bytes())):
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def room_of(module: str) -> str:
+    """`hipref.envs.wiping` -> `envs`; the root package is the room `hipref`."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "hipref"
+
+
+SOURCES: dict[str, Path] = {module_name(path): path for path in sorted(PACKAGE.rglob("*.py"))}
+
+
+@cache
+def direct_imports(module: str) -> frozenset[str]:
+    """Every module `module`'s source imports, by its full name, a hipref module resolved to the module
+    that holds the name (`from hipref.envs import task` is `hipref.envs.task`)."""
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(SOURCES[module].read_bytes())):
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+        elif isinstance(node, ast.ImportFrom):
+            assert node.level == 0 and node.module, f"{module}: a relative import"
             names.add(node.module)
-    return names
+            names.update(
+                f"{node.module}.{alias.name}"
+                for alias in node.names
+                if f"{node.module}.{alias.name}" in SOURCES
+            )
+    return frozenset(names)
 
 
-@pytest.mark.parametrize("layer", list(FORBIDDEN))
-def test_a_layer_imports_nothing_above_it(layer: str) -> None:
-    sources = sorted((PACKAGE / layer).glob("*.py"))
-    assert sources
-    offending = {
-        f"{source.name}: {name}"
-        for source in sources
-        for name in imported_modules(source)
-        if any(name == banned or name.startswith(banned + ".") for banned in FORBIDDEN[layer])
-    }
-    assert not offending, f"hipref/{layer} imports {sorted(offending)}"
+def executed(module: str) -> set[str]:
+    """The hipref modules Python executes to import `module`: each package on its path, then itself."""
+    parts = module.split(".")
+    return {".".join(parts[:i]) for i in range(1, len(parts) + 1)} & set(SOURCES)
+
+
+@cache
+def reached(module: str) -> frozenset[str]:
+    """Every module (hipref's and others') that importing `module` imports, through every hipref module
+    it runs on the way."""
+    seen: set[str] = set()
+    names: set[str] = set()
+    todo = sorted(executed(module))
+    while todo:
+        current = todo.pop()
+        if current in seen:
+            continue
+        seen.add(current)
+        for name in direct_imports(current):
+            names.add(name)
+            todo += sorted(executed(name) - seen)
+    return frozenset(names | seen)
+
+
+def floor_of(room: str) -> int:
+    if room == "hipref":
+        return 0
+    floors = [level for level, rooms in enumerate(FLOORS) if room in rooms]
+    assert floors, f"hipref/{room} is on no floor: add it to FLOORS in {Path(__file__).name}"
+    return floors[0]
+
+
+def test_every_room_is_on_exactly_one_floor() -> None:
+    rooms = {room_of(module) for module in SOURCES} - {"hipref"}
+    listed = [room for floor in FLOORS for room in floor]
+    assert sorted(listed) == sorted(set(listed)), "a room is on two floors"
+    assert rooms == set(listed), f"rooms without a floor: {rooms - set(listed)}; gone: {set(listed) - rooms}"
+
+
+def test_no_room_imports_from_its_own_floor_or_above() -> None:
+    offending = sorted(
+        f"{module} imports {name} (floor {floor_of(room_of(name))} from floor {floor_of(room_of(module))})"
+        for module in SOURCES
+        for name in direct_imports(module)
+        if name.startswith("hipref.")
+        and room_of(name) != room_of(module)
+        and room_of(module) != "hipref"
+        and floor_of(room_of(name)) >= floor_of(room_of(module))
+    )
+    assert not offending, "\n".join(offending)
+
+
+def test_the_root_package_imports_only_the_ground_floor() -> None:
+    """`import hipref` runs before any room's own code, so anything it imports every room imports."""
+    upstairs = sorted(
+        name
+        for name in direct_imports("hipref")
+        if name.startswith("hipref.") and floor_of(room_of(name)) > 0
+    )
+    assert not upstairs, f"hipref/__init__.py imports {upstairs}"
+
+
+@pytest.mark.parametrize("room", list(NEVER))
+def test_a_room_never_reaches_what_it_must_not(room: str) -> None:
+    offending = sorted(
+        f"{module} reaches {name}"
+        for module in SOURCES
+        if room_of(module) == room
+        for name in reached(module)
+        if any(name == banned or name.startswith(banned + ".") for banned in NEVER[room])
+    )
+    assert not offending, "\n".join(offending[:20])

@@ -17,6 +17,7 @@ import pytest
 
 from hipref import sweep
 from hipref.sweep import SweepError, cached_artefact, cell_key, run_sweep
+from hipref.sweep.cache import NOT_IN_ROWS, without_docstrings
 from tests._sweep_cells import (
     ThreadsCell,
     ToyCell,
@@ -255,13 +256,13 @@ def test_the_artefacts_of_a_sweeps_cells_go_to_its_cache_dir(
 
 def test_the_cache_key_ignores_docstrings_and_comments_but_not_code() -> None:
     def tree(source: str) -> str:
-        return ast.dump(sweep._without_docstrings(ast.parse(source)))
+        return ast.dump(without_docstrings(ast.parse(source)))
 
     base = 'def f(x):\n    """Doubles."""\n    return 2 * x\n'
     assert tree(base) == tree('def f(x):\n    """Twice x."""\n    # the double\n    return 2 * x\n')
     assert tree(base) == tree("def f(x):\n    return 2 * x\n")
     assert tree(base) != tree('def f(x):\n    """Doubles."""\n    return 3 * x\n')
-    assert "bench" in sweep.NOT_IN_ROWS and "plots.py" in sweep.NOT_IN_ROWS
+    assert "bench" in NOT_IN_ROWS and "plots.py" in NOT_IN_ROWS
 
 
 def test_a_prefix_artefact_serves_every_shorter_length_and_grows_on_demand(tmp_path: Path) -> None:
@@ -277,7 +278,7 @@ def test_a_prefix_artefact_serves_every_shorter_length_and_grows_on_demand(tmp_p
 
     assert get(3) == [0, 10, 20] and get(2) == [0, 10] and builds == [3]
     assert get(5) == [0, 10, 20, 30, 40] and builds == [3, 5]
-    sweep._ARTEFACTS.clear()  # a new process: read back from disk
+    sweep.forget_artefacts()  # a new process: read back from disk
     assert get(4) == [0, 10, 20, 30] and builds == [3, 5]
 
 

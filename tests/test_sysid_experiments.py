@@ -154,7 +154,7 @@ def test_a_run_with_fewer_episodes_reads_the_start_of_a_longer_ones_clips_and_ch
     task = WipingTask()
     spec = EvaluationSpec("wiping", 0.66, 4, 1, 1, 3)
     longer = evaluation_episodes(task, spec, 3)
-    sweep._ARTEFACTS.clear()
+    sweep.forget_artefacts()
     monkeypatch.setenv("HIPREF_CACHE_DIR", str(Path(os.environ["HIPREF_CACHE_DIR"]) / "other"))
     shorter = evaluation_episodes(task, spec, 2)
     for a, b in zip(longer[:2], shorter, strict=True):
@@ -165,7 +165,7 @@ def test_a_run_with_fewer_episodes_reads_the_start_of_a_longer_ones_clips_and_ch
     )
     run_si(dataclasses.replace(short, episodes=8))
     replayed = run_si(short)
-    sweep._ARTEFACTS.clear()
+    sweep.forget_artefacts()
     monkeypatch.setenv("HIPREF_CACHE_DIR", str(Path(os.environ["HIPREF_CACHE_DIR"]) / "fresh"))
     pd.testing.assert_frame_equal(replayed, run_si(short))
 

@@ -39,9 +39,7 @@ def noise_sweep(protocol: Protocol, noise_levels: list[float]) -> pd.DataFrame:
 
 def forget_clips() -> None:
     """Drop the learning clips held in memory, so that the next sweep executes them afresh."""
-    for key, value in list(sweep._ARTEFACTS.items()):
-        if isinstance(value, list) and value and isinstance(value[0], Clip):
-            del sweep._ARTEFACTS[key]
+    sweep.forget_artefacts(lambda held: isinstance(held, list) and bool(held) and isinstance(held[0], Clip))
 
 
 def timed_sweep(protocol: Protocol, noise_levels: list[float], replay: bool) -> tuple[float, pd.DataFrame]:
@@ -65,7 +63,7 @@ def main() -> None:
 
     protocol = Protocol(heights=(0.7,), masses=(14.0,), episodes=args.episodes, eval_every=33)
     load_before = os.getloadavg()[0]
-    with sweep._artefacts_in(sweep.NO_CACHE):
+    with sweep.artefacts_in(sweep.NO_CACHE):
         noise_sweep(protocol, args.noise_levels[:1])  # models, controllers and evaluation episodes
         replayed, executed = [], []
         for _ in range(args.repeats):

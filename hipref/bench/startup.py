@@ -17,6 +17,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+from typing import Any
 
 FIRST_ROLLOUTS = """
 import hashlib, json, time
@@ -32,7 +33,7 @@ print(json.dumps({"seconds": time.perf_counter() - start, "digest": hashlib.sha2
 """
 
 
-def first_rollouts(cache: str) -> dict[str, object]:
+def first_rollouts(cache: str) -> dict[str, Any]:
     """Seconds from a fresh interpreter's first import to the end of its first rollout in each task."""
     env = {**os.environ, "NUMBA_CACHE_DIR": cache}
     out = subprocess.run(
@@ -49,8 +50,8 @@ def main() -> None:
     for _ in range(args.repeats):
         with tempfile.TemporaryDirectory() as cache:
             first, second = first_rollouts(cache), first_rollouts(cache)
-        cold.append(float(first["seconds"]))  # type: ignore[arg-type]
-        warm.append(float(second["seconds"]))  # type: ignore[arg-type]
+        cold.append(float(first["seconds"]))
+        warm.append(float(second["seconds"]))
         same = same and first["digest"] == second["digest"]
     cold_s, warm_s = statistics.median(cold), statistics.median(warm)
     print(

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+import types
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -64,8 +65,8 @@ class CompiledCache(caching._CacheLocator):
 
     DIGEST = _control_sources_digest()
 
-    def __init__(self, py_func: object, directory: Path) -> None:
-        self._lineno = py_func.__code__.co_firstlineno  # type: ignore[attr-defined]
+    def __init__(self, py_func: types.FunctionType, directory: Path) -> None:
+        self._lineno = py_func.__code__.co_firstlineno
         self._cache_path = str(directory / f"numba-{self.DIGEST}")
 
     def get_cache_path(self) -> str:
@@ -78,7 +79,7 @@ class CompiledCache(caching._CacheLocator):
         return str(self._lineno)
 
     @classmethod
-    def from_function(cls, py_func: object, py_file: str) -> CompiledCache | None:
+    def from_function(cls, py_func: types.FunctionType, py_file: str) -> CompiledCache | None:
         if Path(py_file).resolve().parent != CONTROL:
             return None
         chosen = os.environ.get("NUMBA_CACHE_DIR")
@@ -96,9 +97,11 @@ class CompiledCache(caching._CacheLocator):
 caching.CacheImpl._locator_classes.insert(0, CompiledCache)
 
 # Compiled without fastmath, so results are reproducible to the bit.
-kernel = numba.njit(no_cfunc_wrapper=True, cache=True)
+# numba's declared signature of njit lists its public options only, not the wrapper options it passes on to
+# the compiler (no_cfunc_wrapper, no_cpython_wrapper).
+kernel = numba.njit(no_cfunc_wrapper=True, cache=True)  # type: ignore[call-overload]
 """Compiles a function called from Python."""
-subroutine = numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=True)
+subroutine = numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=True)  # type: ignore[call-overload]
 """Compiles a function called only from compiled code (no Python entry point: it compiles faster)."""
 
 
@@ -118,7 +121,9 @@ _POINTER = numba.types.uintp
 """Pointers travel as plain integers (mjModel*, mjData*, mjtNum*)."""
 
 
-def _c_function(name: str, *argtypes: numba.types.Type) -> numba.types.ExternalFunction:
+def _c_function(name: str, *argtypes: numba.types.Type) -> Any:
+    """A C function of libmujoco, callable from compiled code only (Any: to Python, numba's declaration is a
+    type, not a callable)."""
     return numba.types.ExternalFunction(name, numba.types.void(*argtypes))
 
 

@@ -17,7 +17,7 @@ compares an action with (`low_level_expert`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -65,10 +65,10 @@ def expert_direction(grid: WipingGrid, tool_xy: np.ndarray) -> int:
     return int(np.argmax(DIRECTIONS @ delta))
 
 
-def low_level_expert(grid: WipingGrid) -> Callable[[Hashable], int]:
+def low_level_expert(grid: WipingGrid) -> Callable[[tuple[float, ...]], int]:
     """The expert a `ScriptedFeedbackTeacher` compares a low-level action with: +1 for the expert's
     direction at the sponge's position (read from the state), -1 for any other."""
-    return lambda state: expert_direction(grid, position(grid, state))  # type: ignore[index]
+    return lambda state: expert_direction(grid, position(grid, state))
 
 
 def apply_action(

@@ -71,6 +71,7 @@ class DeskWipingEnv(gym.Env):
     the stroke in the safe band), `reached`, `success`, `param` (the true desk height, m)."""
 
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
+    action_space: gym.spaces.Box
 
     def __init__(self, config: WipingConfig | None = None, max_strokes: int = 20) -> None:
         _check_config(config, WipingConfig)
@@ -133,6 +134,7 @@ class PushingEnv(gym.Env):
     N), `success`, `param` (the true cube mass, kg)."""
 
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
+    action_space: gym.spaces.Box
 
     def __init__(self, config: PushingConfig | None = None) -> None:
         _check_config(config, PushingConfig)

@@ -9,6 +9,7 @@ periods (`clip`, `probe_slice`), is built here on that interface alone.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -99,6 +100,15 @@ class Clip(NamedTuple):
             )
         return self.tau
 
+    def replayer(self, history: int) -> Observe:
+        """`replay` as the `observe` a learner's `ask` calls."""
+        return lambda estimate, rng: self.replay(estimate, history, rng)
+
+
+Observe = Callable[[float, np.random.Generator], np.ndarray]
+"""What a learner's `ask` calls for tau: the slice of the clip pi^l executes with a candidate phi, its place
+drawn with the rng given."""
+
 
 def evenly_spaced(periods: int, frames: int) -> np.ndarray:
     """Indices of `frames` control periods evenly spaced over a clip of `periods` (repeated when the clip
@@ -137,6 +147,21 @@ def clip(
         first = slice_start(periods, history, rng)
         features = task.rollout(true_parameter, estimate, layout, periods=first + history).features
     return Clip(estimate, periods, first, features[first : first + history].reshape(-1))
+
+
+def observer(
+    task: Task, true_parameter: float, layout: Layout, history: int, executed: list[Clip] | None = None
+) -> Observe:
+    """`clip`'s tau as the `observe` a learner's `ask` calls, every candidate from `layout`; each clip
+    executed is appended to `executed` when given (to be replayed later)."""
+
+    def observe(estimate: float, rng: np.random.Generator) -> np.ndarray:
+        executed_clip = clip(task, true_parameter, estimate, layout, history, rng)
+        if executed is not None:
+            executed.append(executed_clip)
+        return executed_clip.tau
+
+    return observe
 
 
 def random_estimate(task: Task, rng: np.random.Generator) -> float:

@@ -20,6 +20,7 @@ and an episode ends once every cell is wiped (nothing more can be counted).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -215,19 +216,24 @@ def run_cell(cell: R1Cell) -> pd.DataFrame:
         if cell.method == "tabular_coach":
             learner = TabularCoach(grid.n_states, grid.n_actions, CoachConfig(config.coach_learning_rate))
             teacher = ScriptedFeedbackTeacher(grid.expert)
-            episode = tabular_episode
+            episode = functools.partial(tabular_episode, task, grid, learner, teacher, config)
         else:
             coach_config = PretrainedCoachConfig(
                 config.hidden, config.bc_epochs, learning_rate=config.policy_learning_rate
             )
             observations, actions = demonstrations(demo_spec(config))
             policy = behaviour_cloning(observations, actions, len(DIRECTIONS), coach_config, cell.seed)
-            learner = PretrainedCoach(policy, coach_config)
-            teacher = ScriptedFeedbackTeacher(low_level_expert(grid))
-            episode = pretrained_episode
+            episode = functools.partial(
+                pretrained_episode,
+                task,
+                grid,
+                PretrainedCoach(policy, coach_config),
+                ScriptedFeedbackTeacher(low_level_expert(grid)),
+                config,
+            )
         rows = []
         for k in range(config.episodes):
-            cells, decisions, steps = episode(task, grid, learner, teacher, config, rng)  # type: ignore[arg-type]
+            cells, decisions, steps = episode(rng)
             rows.append((k, "cells_wiped", float(cells), decisions, steps))
     return tidy_rows(
         rows,

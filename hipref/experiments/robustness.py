@@ -198,7 +198,7 @@ def run_teacher_noise(cell: TeacherNoiseCell) -> pd.DataFrame:
         )
         learner = _BufferOnly(model, PESIConfig(history=h), integer_seed(learner_seq))
         for recorded in clips:
-            query = learner.ask(lambda phi, rng, recorded=recorded: recorded.replay(phi, h, rng))
+            query = learner.ask(recorded.replayer(h))
             learner.tell(query, teacher.answer(query))
     labelled = len(learner)
     metrics = {

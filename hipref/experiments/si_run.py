@@ -27,7 +27,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
-from hipref.envs.task import Clip, Layout, Task, clip, probe_slice
+from hipref.envs.task import Clip, Layout, Task, observer, probe_slice
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.low_level import make_task
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
@@ -365,17 +365,12 @@ def learning_clips(task: Task, spec: LearningSpec, episodes: int, model: SIModel
         clips: list[Clip] = []
         for _ in range(count):
             layout = task.sample_layout(learn_rng)
-            asker.ask(lambda phi, rng, layout=layout: _record(clips, clip(task, truth, phi, layout, h, rng)))
+            asker.ask(observer(task, truth, layout, h, clips))
         return clips
 
     return cached_prefix(
         f"si_learning_{spec.domain}", spec, episodes, build, check=lambda item: isinstance(item, Clip)
     )
-
-
-def _record(clips: list[Clip], clip: Clip) -> np.ndarray:
-    clips.append(clip)
-    return clip.tau
 
 
 class Estimator(NamedTuple):
@@ -452,7 +447,7 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             if episode in evaluated_at:
                 current = estimator(model if learner is None else learner)
                 metrics = evaluate(task, current, checkpoints[evaluated_at.index(episode)], truth)
-                if hasattr(learner, "filter_precision_recall"):
+                if learner is not None and hasattr(learner, "filter_precision_recall"):
                     precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
                     metrics |= {"filter_precision": precision, "filter_recall": recall}
                 rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
@@ -461,10 +456,10 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             # Algorithm 2: execute pi^l with the candidates from one layout, sample a slice tau, ask for a
             # preference y, update SI (Eq. 2/3).
             if clips is not None:
-                query = learner.ask(lambda phi, rng, recorded=clips[episode]: recorded.replay(phi, h, rng))
+                query = learner.ask(clips[episode].replayer(h))
             else:
                 layout = task.sample_layout(learn_rng)
-                query = learner.ask(lambda phi, rng, at=layout: clip(task, truth, phi, at, h, rng).tau)
+                query = learner.ask(observer(task, truth, layout, h))
             learner.tell(query, teacher.answer(query))
     return tidy_rows(
         rows,

@@ -59,14 +59,16 @@ class TabularCoach:
         self._integer_states: bool | None = None
 
     def _row(self, state: Hashable) -> int:
-        is_integer = isinstance(state, numbers.Integral) and not isinstance(state, bool | np.bool_)
+        integral = isinstance(state, numbers.Integral) and not isinstance(state, bool | np.bool_)
+        index = int(state) if integral and isinstance(state, numbers.Integral) else None
+        is_integer = index is not None
         if self._integer_states is None:
             self._integer_states = is_integer
         elif self._integer_states != is_integer:
             raise ValueError(f"states must all be integer indices or all other hashables; got {state!r}")
-        if is_integer:
-            check_int("state", int(state), 0, self.n_states - 1)
-            return int(state)
+        if index is not None:
+            check_int("state", index, 0, self.n_states - 1)
+            return index
         if state not in self._rows:
             if len(self._rows) == self.n_states:
                 raise ValueError(

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 import torch
@@ -229,7 +229,8 @@ class ImitationResult(NamedTuple):
     """The policy after each of `ImitationConfig.snapshots` iterations."""
 
 
-Collect = Callable[[Any, float, Callable[[int], np.ndarray]], Trajectory]
+TrajectoryT = TypeVar("TrajectoryT", bound=Trajectory)
+Collect = Callable[[Any, float, Callable[[int], np.ndarray]], TrajectoryT]
 """`collect(goal, phi, perturb)`: set the simulator to phi and return P's trajectory under the goal, SPD
 tracking P's reference plus `perturb(periods)` (periods, 6)."""
 
@@ -243,11 +244,11 @@ def algorithm_streams(seed: int) -> tuple[np.random.Generator, np.random.Generat
 
 def collect_demonstrations(
     sample_goal_and_phi: Callable[[np.random.Generator], tuple[Any, float]],
-    collect: Collect,
+    collect: Collect[TrajectoryT],
     control_period: float,
     config: ImitationConfig,
     count: int | None = None,
-) -> list[Trajectory]:
+) -> list[TrajectoryT]:
     """Algorithm 3, lines 2-6, of its first `count` iterations (all of `config.iterations` by default).
 
     P does not depend on pi^l, so the trajectory of iteration i is the same whether the updates run between
@@ -256,7 +257,7 @@ def collect_demonstrations(
     `sample_goal_and_phi` draws a goal and a parameter; `collect` executes P, its reference perturbed as
     `config` says (`control_period` s per row of the perturbation)."""
     rng, _ = algorithm_streams(config.seed)
-    demonstrations = []
+    demonstrations: list[TrajectoryT] = []
     for _ in range(config.iterations if count is None else count):
         # 2: randomly sample goal g and environmental parameter phi
         goal, phi = sample_goal_and_phi(rng)

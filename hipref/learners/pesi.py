@@ -154,7 +154,7 @@ def fine_tuned_parameters(model: SIModel, fine_tuned: str) -> list[torch.nn.Para
     chosen = {
         "all": list(model.parameters()),
         "last_layer": list(output.parameters()),
-        "output_bias": [output.bias],
+        "output_bias": [parameter for name, parameter in output.named_parameters() if name == "bias"],
     }[fine_tuned]
     ids = {id(p) for p in chosen}
     for parameter in model.parameters():

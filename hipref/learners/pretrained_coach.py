@@ -50,6 +50,7 @@ class FlatPolicy(nn.Module):
 
     def __init__(self, observation_size: int, n_actions: int, hidden: int) -> None:
         super().__init__()
+        self.n_actions = n_actions
         self.net = nn.Sequential(
             nn.Linear(observation_size, hidden),
             nn.Tanh(),
@@ -89,7 +90,7 @@ class PretrainedCoach:
         self.policy = policy
         self.config = config
         self.parameters = list(policy.parameters())
-        self.n_actions = int(policy.net[-1].out_features)
+        self.n_actions = policy.n_actions
 
     def probabilities(self, state: np.ndarray) -> np.ndarray:
         with torch.no_grad():

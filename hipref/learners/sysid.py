@@ -104,6 +104,11 @@ class SIModel(nn.Module):
     it travels in the state dict), which `pretrain` fits.
     """
 
+    candidate_values: torch.Tensor
+    normalised_values: torch.Tensor
+    feature_mean: torch.Tensor
+    feature_std: torch.Tensor
+
     def __init__(
         self,
         input_dim: int,

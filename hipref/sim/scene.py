@@ -188,6 +188,8 @@ class Scene:
         self.model.body_pos[self.desk_body, 2] = height - self.model.geom_size[self.desk_geom, 2]
 
     def set_cube_mass(self, mass: float) -> None:
+        if self._cube_unit_inertia is None:
+            raise ValueError("set_cube_mass needs a scene with the cube (make_scene(..., with_cube=True))")
         self.model.body_mass[self.cube_body] = mass
         self.model.body_inertia[self.cube_body] = self._cube_unit_inertia * mass
         # A free body's diagonal mass (dof_M0) is fixed at compile time; without recomputing the model's

@@ -38,6 +38,5 @@ def before_and_after_clip(teaching: PreferenceTeaching) -> bytes | None:
         task.clip_frames(teaching.truth, estimate, layout, config.frames)
         for estimate in (teaching.initial_estimate, teaching.estimate())
     ]
-    if any(f is None for f in frames):
-        return None
-    return side_by_side_gif(frames, config.fps)  # type: ignore[arg-type]
+    clips = [f for f in frames if f is not None]
+    return side_by_side_gif(clips, config.fps) if len(clips) == len(frames) else None

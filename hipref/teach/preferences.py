@@ -234,8 +234,9 @@ class PreferenceTeaching:
                 self.task.clip_frames(self.truth, query.candidates[i], layout, self.config.frames)
                 for i in order
             ]
-            if all(f is not None for f in frames):
-                animation = side_by_side_gif(frames, self.config.fps)  # type: ignore[arg-type]
+            clips = [f for f in frames if f is not None]
+            if len(clips) == len(frames):
+                animation = side_by_side_gif(clips, self.config.fps)
         return ShownQuery(number, query, executed[0], order, animation)
 
     def prepare_apart(self, number: int) -> ShownQuery:

@@ -35,11 +35,14 @@ def validate_feedback(feedback: object) -> int:
 
     Booleans are refused: True would silently count as +1 although feedback is ternary.
     """
-    ok = isinstance(feedback, numbers.Real) and not isinstance(feedback, bool | np.bool_)
-    ok = ok and math.isfinite(float(feedback)) and float(feedback) in FEEDBACK_VALUES
-    if not ok:
+    if (
+        not isinstance(feedback, numbers.Real)
+        or isinstance(feedback, bool | np.bool_)
+        or not math.isfinite(float(feedback))
+        or float(feedback) not in FEEDBACK_VALUES
+    ):
         raise ValueError(f"feedback must be one of {list(FEEDBACK_VALUES)}, got {feedback!r}")
-    return int(feedback)
+    return int(float(feedback))
 
 
 class ScriptedFeedbackTeacher:
@@ -52,7 +55,8 @@ class ScriptedFeedbackTeacher:
 
     def __init__(
         self,
-        expert: Callable[[Hashable], Any],
+        # Any: each learner has its own kind of state (a grid cell, a flat observation) and of action.
+        expert: Callable[[Any], Any],
         flip_probability: float = 0.0,
         indifferent_probability: float = 0.0,
         rng: np.random.Generator | None = None,
@@ -79,10 +83,17 @@ class ScriptedFeedbackTeacher:
     def answer(self, query: FeedbackQuery) -> int:
         """Feedback on the queried (state, action): 1 if it matches the expert, -1 if not, noise applied."""
         # Draw only when a noise option is on, so a noise-free teacher consumes no randomness.
-        if self.indifferent_probability > 0 and self.rng.random() < self.indifferent_probability:
+        if self._happens(self.indifferent_probability):
             return 0
         # np.array_equal also covers vector-valued actions; for grid actions it is plain equality.
         feedback = 1 if np.array_equal(query.action, self.expert(query.state)) else -1
-        if self.flip_probability > 0 and self.rng.random() < self.flip_probability:
+        if self._happens(self.flip_probability):
             feedback = -feedback
         return feedback
+
+    def _happens(self, probability: float) -> bool:
+        """One draw of an event of `probability`; none at probability 0."""
+        if probability == 0:
+            return False
+        assert self.rng is not None  # the constructor requires an rng when a probability is positive
+        return bool(self.rng.random() < probability)

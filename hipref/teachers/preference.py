@@ -158,12 +158,12 @@ class ScriptedPreferenceTeacher:
         if model.kind == "oracle" and noise != 0:
             raise ValueError(f"noise must be 0 for the 'oracle' teacher model, got {noise!r}")
         check_range("scale", scale, 1e-12, math.inf)
-        self.true_parameter = float(true_parameter)
-        self.noise = float(noise)
-        self.rng = rng
-        self.model = model
-        self.scale = float(scale)
-        self._state = TeacherState(rng)
+        self.true_parameter: float = float(true_parameter)
+        self.noise: float = float(noise)
+        self.rng: np.random.Generator = rng
+        self.model: TeacherModel = model
+        self.scale: float = float(scale)
+        self._state: TeacherState = TeacherState(rng)
         self.flipped: list[bool] = []
         self.labelled: list[bool] = []
 
