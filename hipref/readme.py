@@ -22,6 +22,7 @@ import yaml
 from hipref import verdicts
 from hipref.experiments.noise_estimation import overestimate, paper_distance
 from hipref.experiments.r3_copesi import final_difference
+from hipref.experiments.robustness import best_learner, noise_table
 from hipref.results import repo_root
 
 WORDS = {
@@ -32,7 +33,7 @@ WORDS = {
 }
 """How each verdict of `hipref.verdicts` reads at the start of a finding."""
 
-SECTIONS: tuple[str, ...] = ("findings",)
+SECTIONS: tuple[str, ...] = ("findings", "copesi")
 """The generated sections: each one's text is `hipref/readme_<name>.md`, with a placeholder for every
 number and verdict."""
 
@@ -209,6 +210,51 @@ def _flip_rates(results: Path) -> dict[str, str]:
     return out
 
 
+LEARNERS = {
+    "co_pesi_likelihood": "co-teaching with the likelihood rate",
+    "pesi_smoothed": "label smoothing",
+    "pesi_unbiased": "the unbiased loss",
+    "pesi_small_loss": "the small-loss filter",
+    "pesi_rime": "RIME's trust-and-flip",
+}
+"""How the README names notebook 11's learners."""
+
+TIMES = {0: "never", 1: "once", 2: "twice"}
+
+
+def _robust(results: Path) -> dict[str, str]:
+    table = _csv(results, "tables/11_teachers_and_robustness.csv")
+    settings = table[["domain", "teacher"]].drop_duplicates()
+    held, significant = [], []
+    ahead = {}
+    for domain, teacher in settings.itertuples(index=False):
+        learner, verdict, _ = best_learner(table, domain, teacher)
+        held.append(verdict)
+        error = table[(table["domain"] == domain) & (table["teacher"] == teacher)]
+        error = error[(error["method"] == learner) & (error["metric"] == "param_error")].iloc[0]
+        ahead[domain] = max(ahead.get(domain, 0.0), -float(error["mean"]))
+        d = verdicts.Difference(error["mean"], error["low"], error["high"], int(error["n"]))
+        if verdicts.better(d, lower_is_better=True) == "yes":
+            unit, scale, digits = (" mm", 1000.0, 2) if domain == "wiping" else (" kg", 1.0, 3)
+            setting = f"{LEARNERS[learner]} under the {teacher} teacher, {domain}"
+            significant.append(f"{setting}: {interval(d, unit, digits, scale)}")
+    noise = noise_table(_csv(results, "data/11_teachers_and_robustness.csv"))
+    myopic = noise[noise["teacher"] == "myopic"].set_index("domain")["bias"]
+    return {
+        "robust_verdict": WORDS[verdicts.any_of(held)],
+        "robust_teachers": str(table["teacher"].nunique()),
+        "robust_learners": str(table["method"].nunique()),
+        "robust_environments": str(int(table["n"].min())),
+        "robust_both": f"{held.count('yes')} of {len(held)}",
+        "robust_ahead_wiping": f"{1000 * ahead['wiping']:.1f}",
+        "robust_ahead_pushing": f"{ahead['pushing']:.2f}",
+        "robust_times": TIMES.get(len(significant), f"{len(significant)} times"),
+        "robust_significant": "; ".join(significant),
+        "myopic_wiping": signed(myopic["wiping"], 3),
+        "myopic_pushing": signed(myopic["pushing"], 3),
+    }
+
+
 def _table3(results: Path) -> dict[str, str]:
     rows = _csv(results, "data/06_noise_estimation.csv")
     table = _csv(results, "tables/table3.csv")
@@ -230,6 +276,37 @@ def _table3(results: Path) -> dict[str, str]:
     }
 
 
+def _readings(results: Path) -> dict[str, str]:
+    """Notebook 08's readings and the pushing gain's first significant checkpoint in notebook 02."""
+    table = _csv(results, "tables/08_si_sensitivity.csv")
+    readings = table[table["variant"] != "previous_design"]
+    rows = _csv(results, "data/08_si_sensitivity.csv")
+    out = {
+        "readings_episodes": str(int(rows["episode"].max())),
+        "readings_environments": str(
+            len(rows[rows["domain"] == "wiping"][["ground_truth", "seed"]].drop_duplicates())
+        ),
+    }
+    for domain in UNITS:
+        at = readings[readings["domain"] == domain]
+        wins = at[at["pesi_minus_osi_high"] < 0]
+        out[f"readings_{domain}"] = f"{len(wins)} of {len(at)}"
+        out[f"readings_{domain}_names"] = ", ".join(wins["variant"]) or "none"
+        co = table[(table["domain"] == domain) & (table["copesi_minus_pesi_high"] < 0)]
+        out[f"readings_copesi_{domain}"] = str(len(co))
+    curve = _csv(results, "tables/02_pesi_minus_osi.csv")
+    pushing = curve[(curve["domain"] == "pushing") & (curve["metric"] == "param_error") & (curve["high"] < 0)]
+    out["pushing_first"] = str(int(pushing["episode"].min()))
+    noise = _csv(results, "data/03_r2_noise.csv")
+    final = noise[
+        (noise["method"] == "pesi") & (noise["metric"] == "param_error") & (noise["domain"] == "wiping")
+    ]
+    final = final[final["episode"] == final["episode"].max()].groupby("noise")["value"].mean()
+    out["noise_episodes"] = str(int(noise["episode"].max()))
+    out["noise_w0"], out["noise_w30"] = f"{100 * final[0.0]:.1f}", f"{100 * final[0.3]:.1f}"
+    return out
+
+
 def values(results: Path, root: Path) -> dict[str, str]:
     """Every placeholder of `SECTIONS`, computed from the results directory `results`."""
     return {
@@ -239,6 +316,8 @@ def values(results: Path, root: Path) -> dict[str, str]:
         **_noise(results),
         **_copesi(results),
         **_flip_rates(results),
+        **_robust(results),
+        **_readings(results),
         **_table3(results),
     }
 

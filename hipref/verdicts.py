@@ -56,6 +56,7 @@ __all__ = [
     "VERDICTS",
     "Difference",
     "Trend",
+    "any_of",
     "at_most",
     "better",
     "better_on_both",
@@ -176,3 +177,15 @@ def combine(verdicts: Sequence[str]) -> str:
         if verdict in verdicts:
             return verdict
     return YES
+
+
+def any_of(verdicts: Sequence[str]) -> str:
+    """One verdict for a claim that one of several settings shows ("a robust learner beats PESI"): 'yes'
+    if any part holds, else 'too few environments to decide' if any part is, 'no' if every part is
+    contradicted, else 'no difference detected'."""
+    combine(verdicts)  # refuses an empty list or a word outside the vocabulary
+    if YES in verdicts:
+        return YES
+    if TOO_FEW in verdicts:
+        return TOO_FEW
+    return NO if all(held == NO for held in verdicts) else NO_DIFFERENCE

@@ -11,6 +11,7 @@ from hipref.verdicts import (
     MIN_ENVIRONMENTS,
     VERDICTS,
     Difference,
+    any_of,
     at_most,
     better,
     better_on_both,
@@ -253,6 +254,8 @@ def test_within_and_combine() -> None:
     with pytest.raises(ValueError, match="partly"):
         combine(["partly"])
     assert set(VERDICTS) == {"yes", "no", NONE, TOO_FEW}
+    assert any_of(["no", "yes", NONE]) == "yes" and any_of(["no", "no"]) == "no"
+    assert any_of(["no", NONE]) == NONE and any_of(["no", TOO_FEW]) == TOO_FEW
 
 
 def test_better_on_both_needs_both_and_is_contradicted_by_either() -> None:
