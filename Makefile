@@ -45,7 +45,7 @@ else
 JOBS := 2
 endif
 
-.PHONY: install reproduce notebooks test lint typecheck pytest nbval lab bench
+.PHONY: install reproduce notebooks test lint typecheck pytest nbval lab bench readme readme-check
 
 install: $(VENV)/.installed
 
@@ -95,3 +95,10 @@ bench: install
 	$(PY) -m hipref.bench.clips
 	$(PY) -m hipref.bench.teach
 	$(PY) -m hipref.bench.startup
+
+# The README's findings (every number and verdict) from the committed results/; `make readme-check` only compares.
+readme: install
+	$(PY) -m hipref.readme
+
+readme-check: install
+	$(PY) -m hipref.readme --check

@@ -69,9 +69,6 @@ def tidy_rows(
     return frame[[*TIDY_COLUMNS, *extra]]
 
 
-HOLDS = ("yes", "no", "partly")
-"""Verdicts a claim can get in `results/claims.md`."""
-
 CLAIMS_HEADER = (
     "# Claims: the paper against this study\n"
     "\n"
@@ -194,8 +191,10 @@ def check_tidy(df: pd.DataFrame, metrics: Iterable[str] | None = None) -> pd.Dat
 def claims_table(rows: Iterable[Sequence[str]]) -> str:
     """A markdown table of (claim, what the paper says, what the study measured, holds) rows.
 
-    `holds` is one of "yes", "no", "partly": a claim that does not hold is reported as such.
+    `holds` is one of `hipref.verdicts.VERDICTS`: a claim that does not hold is reported as such.
     """
+    from hipref.verdicts import VERDICTS
+
     lines = ["| Claim | Paper says | Study measured | Holds |", "| --- | --- | --- | --- |"]
     for row in rows:
         if len(row) != 4:
@@ -203,8 +202,8 @@ def claims_table(rows: Iterable[Sequence[str]]) -> str:
                 f"a claims row has 4 fields (claim, paper, study, holds), got {len(row)}: {row!r}"
             )
         *cells, holds = (str(cell) for cell in row)
-        if holds not in HOLDS:
-            raise ValueError(f"holds must be one of {HOLDS}, got {holds!r} for claim {cells[0]!r}")
+        if holds not in VERDICTS:
+            raise ValueError(f"holds must be one of {VERDICTS}, got {holds!r} for claim {cells[0]!r}")
         cells = [cell.replace("|", r"\|").replace("\n", " ").strip() for cell in [*cells, holds]]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

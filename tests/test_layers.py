@@ -16,18 +16,22 @@ import hipref
 PACKAGE = Path(hipref.__file__).resolve().parent
 
 FLOORS: tuple[tuple[str, ...], ...] = (
-    ("numerics", "seeds", "validation", "results", "plots", "kernel"),
-    ("sim", "teachers", "sweep", "verdicts", "notebook", "run_notebook"),
+    ("numerics", "seeds", "validation", "plots", "kernel"),
+    ("intervals",),
+    ("verdicts",),
+    ("results",),
+    ("sim", "teachers", "sweep", "notebook", "run_notebook"),
     ("control", "learners"),
     ("envs",),
     ("experiments",),
-    ("teach",),
+    ("teach", "readme"),
     ("bench",),
 )
-"""The rooms of each floor, from the ground up: the foundations (seeds, checks, results, numerics); the
-scene, the teachers, the sweep, the verdicts and the notebooks' machinery; the controllers and the learners
-(no physics); the tasks; the studies that compose them; a person teaching in JupyterLab; the benchmarks.
-`hipref/__init__.py` is on the ground floor and imports only from it."""
+"""The rooms of each floor, from the ground up: the foundations (seeds, checks, numerics); the bootstrap
+intervals; the verdicts read from them; the results, whose claims carry verdicts; the scene, the teachers,
+the sweep and the notebooks' machinery; the controllers and the learners (no physics); the tasks; the
+studies that compose them; a person teaching in JupyterLab and the README's numbers read from the studies'
+results; the benchmarks. `hipref/__init__.py` is on the ground floor and imports only from it."""
 
 NEVER: dict[str, tuple[str, ...]] = {
     "learners": ("hipref.envs", "hipref.sim", "hipref.control", "mujoco"),

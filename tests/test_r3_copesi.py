@@ -52,32 +52,36 @@ def _rows(co_error: list[float], co_success: list[float]) -> pd.DataFrame:
     )
 
 
-def test_a_consistent_improvement_is_better_and_a_mixed_one_is_no_difference() -> None:
-    better = _rows([0.5, 0.6, 0.4, 0.5], [0.8, 0.9, 0.7, 0.8])
+def test_a_consistent_improvement_is_better_and_a_mixed_one_is_no_difference_detected() -> None:
+    better = _rows([0.5, 0.6, 0.4, 0.5, 0.45, 0.55], [0.8, 0.9, 0.7, 0.8, 0.75, 0.85])
     assert final_difference(better, "pushing", 0.2, "param_error")[:1] == pytest.approx((-0.5,))
-    assert final_difference(better, "pushing", 0.2, "param_error")[3] == 4
+    assert final_difference(better, "pushing", 0.2, "param_error")[3] == 6
     assert verdict(better, "pushing", 0.2, "better")[0] == "yes"
     assert verdict(better, "pushing", 0.2, "no difference")[0] == "no"
-    mixed = _rows([0.5, 1.5, 0.8, 1.2], [0.8, 0.2, 0.6, 0.4])
-    assert verdict(mixed, "pushing", 0.2, "better")[0] == "no"
+    mixed = _rows([0.5, 1.5, 0.8, 1.2, 0.7, 1.3], [0.8, 0.2, 0.6, 0.4, 0.7, 0.3])
+    assert verdict(mixed, "pushing", 0.2, "better")[0] == "no difference detected"
     assert verdict(mixed, "pushing", 0.2, "no difference")[0] == "yes"
 
 
-def test_equal_runs_are_not_better_and_one_metric_alone_is_partly() -> None:
-    equal = _rows([1.0] * 4, [0.5] * 4)
-    assert verdict(equal, "pushing", 0.2, "better")[0] == "no"
+def test_equal_runs_are_not_better_and_one_metric_alone_is_not_enough() -> None:
+    equal = _rows([1.0] * 6, [0.5] * 6)
+    assert verdict(equal, "pushing", 0.2, "better")[0] == "no difference detected"
     assert verdict(equal, "pushing", 0.2, "no difference")[0] == "yes"
-    error_only = _rows([0.5, 0.6, 0.4, 0.5], [0.5] * 4)
-    assert verdict(error_only, "pushing", 0.2, "better")[0] == "partly"
-    # Both means lean the better way, neither interval excludes zero: no evidence, so not 'partly'.
-    leaning = _rows([0.2, 1.6, 0.9, 1.1], [0.9, 0.1, 0.6, 0.5])
-    assert final_difference(leaning, "pushing", 0.2, "param_error")[0] < 0
-    assert final_difference(leaning, "pushing", 0.2, "success_rate")[0] > 0
-    assert verdict(leaning, "pushing", 0.2, "better")[0] == "no"
+    error_only = _rows([0.5, 0.6, 0.4, 0.5, 0.45, 0.55], [0.5] * 6)
+    assert verdict(error_only, "pushing", 0.2, "better")[0] == "no difference detected"
+    # A lower error bought with a lower success contradicts 'better on both'.
+    worse_success = _rows([0.5, 0.6, 0.4, 0.5, 0.45, 0.55], [0.3, 0.2, 0.3, 0.25, 0.3, 0.2])
+    assert verdict(worse_success, "pushing", 0.2, "better")[0] == "no"
+
+
+def test_fewer_than_five_environments_are_too_few_to_decide() -> None:
+    clear = _rows([0.5, 0.6, 0.4, 0.5], [0.8, 0.9, 0.7, 0.8])
+    assert verdict(clear, "pushing", 0.2, "better")[0] == "too few environments to decide"
+    assert verdict(clear, "pushing", 0.2, "no difference")[0] == "too few environments to decide"
 
 
 def test_the_verdict_pairs_runs_by_environment_whatever_the_row_order() -> None:
-    rows = _rows([0.5, 0.6, 0.4, 0.5], [0.8, 0.9, 0.7, 0.8])
+    rows = _rows([0.5, 0.6, 0.4, 0.5, 0.45, 0.55], [0.8, 0.9, 0.7, 0.8, 0.75, 0.85])
     shuffled = rows.sample(frac=1.0, random_state=0)
     assert verdict(shuffled, "pushing", 0.2, "better") == verdict(rows, "pushing", 0.2, "better")
     with pytest.raises(ValueError, match="no rows for domain='wiping'"):

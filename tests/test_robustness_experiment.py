@@ -68,32 +68,41 @@ def _rows(errors: dict[str, list[float]], successes: dict[str, list[float]]) -> 
 def test_the_best_learner_is_the_lowest_paired_error_and_its_verdict_needs_both_metrics() -> None:
     rows = _rows(
         {
-            "pesi": [0.05, 0.06, 0.07, 0.05],
-            "pesi_rime": [0.02, 0.03, 0.03, 0.02],
-            "pesi_smoothed": [0.05] * 4,
+            "pesi": [0.05, 0.06, 0.07, 0.05, 0.06],
+            "pesi_rime": [0.02, 0.03, 0.03, 0.02, 0.03],
+            "pesi_smoothed": [0.05] * 5,
         },
-        {"pesi": [0.4, 0.5, 0.4, 0.5], "pesi_rime": [0.8, 0.9, 0.8, 0.9], "pesi_smoothed": [0.4] * 4},
+        {
+            "pesi": [0.4, 0.5, 0.4, 0.5, 0.4],
+            "pesi_rime": [0.8, 0.9, 0.8, 0.9, 0.8],
+            "pesi_smoothed": [0.4] * 5,
+        },
     )
     table = difference_table(rows, resamples=500)
-    assert set(table.method) == {"pesi_rime", "pesi_smoothed"} and set(table.n) == {4}
+    assert set(table.method) == {"pesi_rime", "pesi_smoothed"} and set(table.n) == {5}
     method, held, text = best_learner(table, "wiping", "skip")
     assert (method, held) == ("pesi_rime", "yes")
     assert "pesi_rime - pesi" in text
-    # A lower error but no better success: the claim holds partly.
-    rows = _rows({"pesi": [0.05] * 4, "pesi_rime": [0.02] * 4}, {"pesi": [0.5] * 4, "pesi_rime": [0.5] * 4})
-    assert best_learner(difference_table(rows, resamples=500), "wiping", "skip")[1] == "partly"
+    # A lower error but no better success: the claim is not shown.
+    rows = _rows({"pesi": [0.05] * 5, "pesi_rime": [0.02] * 5}, {"pesi": [0.5] * 5, "pesi_rime": [0.5] * 5})
+    assert (
+        best_learner(difference_table(rows, resamples=500), "wiping", "skip")[1] == "no difference detected"
+    )
 
 
 def test_a_float32_rounding_difference_is_no_difference() -> None:
     # A filter that forgets nothing makes PESI's updates summed in another order: estimates ulps apart.
     rows = _rows(
-        {"pesi": [0.05, 0.06, 0.07, 0.05], "pesi_small_loss": [0.05 - 1e-8, 0.06 - 2e-8, 0.07, 0.05 - 1e-8]},
-        {"pesi": [0.5] * 4, "pesi_small_loss": [0.5] * 4},
+        {
+            "pesi": [0.05, 0.06, 0.07, 0.05, 0.06],
+            "pesi_small_loss": [0.05 - 1e-8, 0.06 - 2e-8, 0.07, 0.05 - 1e-8, 0.06 - 1e-8],
+        },
+        {"pesi": [0.5] * 5, "pesi_small_loss": [0.5] * 5},
     )
     table = difference_table(rows, resamples=500)
     error = table[table.metric == "param_error"].iloc[0]
     assert (error["mean"], error["low"], error["high"]) == (0.0, 0.0, 0.0)
-    assert best_learner(table, "wiping", "skip")[1] == "no"
+    assert best_learner(table, "wiping", "skip")[1] == "no difference detected"
 
 
 def _teacher_rows(records: list[tuple[str, float, int, str, float]]) -> pd.DataFrame:
@@ -117,7 +126,13 @@ def _teacher_rows(records: list[tuple[str, float, int, str, float]]) -> pd.DataF
 
 def test_the_noise_table_pairs_estimate_and_truth_per_environment() -> None:
     records = []
-    for truth, true, estimate in ((11.0, 0.20, 0.22), (14.0, 0.10, 0.13), (17.0, 0.30, 0.31)):
+    for truth, true, estimate in (
+        (11.0, 0.20, 0.22),
+        (14.0, 0.10, 0.13),
+        (17.0, 0.30, 0.31),
+        (9.0, 0.20, 0.22),
+        (19.0, 0.10, 0.12),
+    ):
         records += [
             ("stochastic", truth, 0, "true_noise", true),
             ("stochastic", truth, 0, "estimated_noise", estimate),
@@ -128,12 +143,18 @@ def test_the_noise_table_pairs_estimate_and_truth_per_environment() -> None:
     table = noise_table(_teacher_rows(records), resamples=500)
     assert list(table.teacher) == ["stochastic"]
     row = table.iloc[0]
-    assert row["n"] == 3 and row["bias"] == pytest.approx(0.02)
+    assert row["n"] == 5 and row["bias"] == pytest.approx(0.02)
     assert row["bias_low"] >= 0.01 - 1e-12 and row["bias_high"] <= 0.03 + 1e-12
-    assert row["true_noise"] == pytest.approx(0.2) and row["estimated_noise"] == pytest.approx(0.22)
+    assert row["true_noise"] == pytest.approx(0.18) and row["estimated_noise"] == pytest.approx(0.2)
     assert row["recovered"] == "yes" and NOISE_TOLERANCE > 0.03
-    far = _teacher_rows([("myopic", 11.0, 0, "true_noise", 0.3), ("myopic", 11.0, 0, "estimated_noise", 0.2)])
-    assert noise_table(far).iloc[0]["recovered"] == "no"
+    far = [
+        ("myopic", truth, 0, metric, value)
+        for truth in (9.0, 11.0, 14.0, 17.0, 19.0)
+        for metric, value in (("true_noise", 0.3), ("estimated_noise", 0.2))
+    ]
+    assert noise_table(_teacher_rows(far)).iloc[0]["recovered"] == "no"
+    # One environment is too few to decide whether the estimate recovers the share.
+    assert noise_table(_teacher_rows(far[:2])).iloc[0]["recovered"] == "too few environments to decide"
 
 
 def test_filter_quality_is_read_at_the_last_evaluation_beside_the_teachers_wrong_share() -> None:

@@ -20,7 +20,7 @@ from hipref.experiments.si_run import METHODS as SI_METHODS
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_range
-from hipref.verdicts import Difference, better, combine, no_difference, paired_difference
+from hipref.verdicts import Difference, better_on_both, combine, no_difference, paired_difference
 
 METHODS: tuple[str, ...] = ("pesi", "co_pesi")
 """The two methods of Figs. 3 and 5; co_pesi is told the true noise level (A.7: remember rate 1 - noise)."""
@@ -113,11 +113,8 @@ def verdict(
 ) -> tuple[str, str]:
     """Test '`method` better than `baseline`' or 'no difference' at the final evaluation on both metrics.
 
-    Each metric gets a rule of `hipref.verdicts`: `better` (a lower param_error, a higher success_rate,
-    with the 95% interval wholly on that side of zero) or `no_difference` (the interval contains zero). The
-    claim holds ('yes') if both metrics do, 'partly' if one does, 'no' if neither (`combine`). A metric
-    whose mean merely leans the better way (`better` says 'partly') does not support the claim: with two
-    metrics, a lean of one would otherwise make 'partly' out of no evidence at all.
+    'better' is `hipref.verdicts.better_on_both` (a lower param_error and a higher success_rate, each 95%
+    interval wholly on its better side); 'no difference' is `no_difference` on both metrics (`combine`).
     Returns (verdict, the measured differences as text).
     """
     check_choice("expect", expect, ("better", "no difference"))
@@ -126,8 +123,7 @@ def verdict(
         for m in ("param_error", "success_rate")
     )
     if expect == "better":
-        parts = [better(error, lower_is_better=True), better(success, lower_is_better=False)]
-        held = combine(["yes" if part == "yes" else "no" for part in parts])
+        held = better_on_both(error, success)
     else:
         held = combine([no_difference(error), no_difference(success)])
     text = (

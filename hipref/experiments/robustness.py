@@ -36,7 +36,7 @@ from hipref.sweep import run_sweep
 from hipref.teachers.models import TEACHER_KINDS, TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_int, check_range
-from hipref.verdicts import Difference, better, bootstrap_mean, combine, paired_difference, within
+from hipref.verdicts import Difference, better_on_both, bootstrap_mean, paired_difference, within
 
 BASELINE = "pesi"
 """Every learner is compared with plain PESI (Eq. 2) under the same teacher."""
@@ -63,12 +63,6 @@ QUICK_LEARNERS: tuple[str, ...] = ("pesi", "pesi_unbiased", "pesi_small_loss", "
 
 ROW_METRICS: tuple[str, ...] = (*METRICS, "unlabelled_share")
 """The metrics of the study's rows: the results contract's, and the teachers' share of unlabelled answers."""
-
-ROUNDING = 1e-6
-"""SI computes in float32 (relative resolution 1.2e-7): two runs whose updates differ only in the order of
-a sum, such as a filter that forgets nothing and PESI, end with estimates a few units of the last place
-apart. A difference below this fraction of the parameter's largest value is that rounding and reads as zero
-(`final_difference`; `hipref.verdicts` reads only float64 rounding, 1e-9 of the data, as zero)."""
 
 NOISE_TOLERANCE = 0.05
 """How near a teacher's true share of wrong answers the estimated flip rate must be to recover it: the
@@ -257,15 +251,11 @@ def final_difference(
     rows: pd.DataFrame, domain: str, teacher: str, method: str, metric: str, *, resamples: int = 5000
 ) -> Difference:
     """`method` minus PESI on `metric` at the last evaluation under `teacher` in `domain`, paired over the
-    environments (`hipref.verdicts.paired_difference`); a mean or bound within float32 rounding of zero
-    (`ROUNDING`) is 0.0."""
+    environments (`hipref.verdicts.paired_difference`, which reads float32 rounding as zero)."""
     at = rows[(rows["domain"] == domain) & (rows["teacher"] == teacher)]
     if at.empty:
         raise ValueError(f"no rows for domain={domain!r} and teacher={teacher!r}")
-    d = paired_difference(at, metric=metric, method=method, baseline=BASELINE, resamples=resamples)
-    floor = ROUNDING * domain_spec(domain).candidates.high
-    mean, low, high = (0.0 if abs(value) <= floor else value for value in (d.mean, d.low, d.high))
-    return Difference(mean, low, high, d.n)
+    return paired_difference(at, metric=metric, method=method, baseline=BASELINE, resamples=resamples)
 
 
 def difference_table(rows: pd.DataFrame, *, resamples: int = 5000) -> pd.DataFrame:
@@ -295,8 +285,8 @@ def difference_table(rows: pd.DataFrame, *, resamples: int = 5000) -> pd.DataFra
 def best_learner(table: pd.DataFrame, domain: str, teacher: str) -> tuple[str, str, str]:
     """The learner with the lowest mean final error difference to PESI under `teacher` in `domain`, and the
     claim 'it improves on PESI' tested on both metrics: `better` (the 95% interval wholly on the better
-    side) for the error and for the success rate; 'yes' if both hold, 'partly' if one does, 'no' if neither
-    (`combine`). Returns (learner, verdict, the measured differences as text)."""
+    side) for the error and for the success rate (`hipref.verdicts.better_on_both`). Returns (learner,
+    verdict, the measured differences as text)."""
     at = table[(table["domain"] == domain) & (table["teacher"] == teacher)]
     errors = at[at["metric"] == "param_error"].set_index("method")
     if errors.empty:
@@ -306,8 +296,7 @@ def best_learner(table: pd.DataFrame, domain: str, teacher: str) -> tuple[str, s
     error = errors.loc[method]
     error_d = Difference(error["mean"], error["low"], error["high"], int(error["n"]))
     success_d = Difference(success["mean"], success["low"], success["high"], int(success["n"]))
-    parts = [better(error_d, lower_is_better=True), better(success_d, lower_is_better=False)]
-    held = combine(["yes" if part == "yes" else "no" for part in parts])
+    held = better_on_both(error_d, success_d)
     text = (
         f"{method} - pesi ({error_d.n} environments): error {error_d.mean:+.3g} "
         f"[{error_d.low:+.3g}, {error_d.high:+.3g}], success {success_d.mean:+.2f} "

@@ -51,9 +51,16 @@ _SWEEP_CACHE_DIR: CacheDir = None
 """While a sweep's cell runs in this process, the sweep's cache directory: the artefacts the cell builds
 (`cached_artefact` without a `cache_dir`) are cached there too."""
 
-NOT_IN_ROWS: tuple[str, ...] = ("bench", "notebook.py", "plots.py", "verdicts.py")
-"""The package's modules no row depends on (benchmarks, notebook parameters, figures, verdicts): editing
-them keeps every cached cell."""
+NOT_IN_ROWS: tuple[str, ...] = (
+    "bench",
+    "notebook.py",
+    "plots.py",
+    "intervals.py",
+    "verdicts.py",
+    "readme.py",
+)
+"""The package's modules no row depends on (benchmarks, notebook parameters, figures, intervals, verdicts,
+the README's numbers): editing them keeps every cached cell."""
 
 
 @functools.cache
@@ -326,5 +333,3 @@ def forget_artefacts(matching: Callable[[Any], bool] | None = None) -> None:
     for key, value in list(_ARTEFACTS.items()):
         if matching is None or matching(value):
             del _ARTEFACTS[key]
-
-

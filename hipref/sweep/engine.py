@@ -243,5 +243,3 @@ def run_sweep(
     if not cells:
         return pd.DataFrame()
     return pd.concat([done[key] for key in keys], ignore_index=True)
-
-

@@ -1,0 +1,397 @@
+"""The README's findings, their numbers and verdicts computed from `results/`, never typed.
+
+`make readme` (`python -m hipref.readme`) rewrites each section of README.md between
+`<!-- generated: NAME -->` and `<!-- end: NAME -->` from the committed results; `python -m hipref.readme
+--check` (and `tests/test_readme.py`) fails when a section differs from what `results/` gives. The text
+of a section lives in `hipref/readme_<name>.md`; every number and verdict in it is a placeholder filled by
+`values`, each read from `results/data/` and `results/tables/` and decided by `hipref.verdicts`, as the
+notebooks do.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from hipref import verdicts
+from hipref.experiments.noise_estimation import overestimate, paper_distance
+from hipref.experiments.r3_copesi import final_difference
+from hipref.experiments.robustness import best_learner, noise_table
+from hipref.results import repo_root
+
+WORDS = {
+    "yes": "holds",
+    "no": "no",
+    "no difference detected": "no difference detected",
+    "too few environments to decide": "too few environments to decide",
+}
+"""How each verdict of `hipref.verdicts` reads at the start of a finding."""
+
+SECTIONS: tuple[str, ...] = ("findings", "copesi")
+"""The generated sections: each one's text is `hipref/readme_<name>.md`, with a placeholder for every
+number and verdict."""
+
+
+def signed(value: float, digits: int) -> str:
+    """`value` with its sign, as the README writes it (a true minus sign)."""
+    return f"{value:+.{digits}f}".replace("-", "\N{MINUS SIGN}")
+
+
+def interval(d: verdicts.Difference, unit: str, digits: int, scale: float = 1.0) -> str:
+    """'−1.9 cm (CI −2.8 to −1.2)', or without the interval over too few environments to draw one."""
+    mean = f"{signed(scale * d.mean, digits)}{unit}"
+    if d.n < verdicts.MIN_ENVIRONMENTS:
+        return f"{mean}, no interval over {d.n} environments"
+    return f"{mean} (CI {signed(scale * d.low, digits)} to {signed(scale * d.high, digits)})"
+
+
+def slope_text(t: verdicts.Trend, unit: str, digits: int, scale: float) -> str:
+    """A slope with its interval, as `interval` writes a difference."""
+    return interval(verdicts.Difference(t.slope, t.low, t.high, t.n), unit, digits, scale)
+
+
+def significant_steps(table: pd.DataFrame, *, increasing: bool) -> str:
+    """'k of K': the steps whose whole interval lies on the claimed side of zero."""
+    held = (table["low"] > 0) if increasing else (table["high"] < 0)
+    return f"{int(held.sum())} of {len(table)}"
+
+
+def _csv(results: Path, name: str) -> pd.DataFrame:
+    return pd.read_csv(results / name)
+
+
+def _differences(rows: pd.DataFrame, domain: str) -> pd.DataFrame:
+    """PESI − OSI per environment and checkpoint: columns ground_truth, seed, episode, difference."""
+    at = rows[(rows["domain"] == domain) & (rows["metric"] == "param_error")]
+    keys = ["ground_truth", "seed", "episode"]
+    pesi, osi = at[at["method"] == "pesi"], at[at["method"] == "osi"]
+    paired = pesi[[*keys, "value"]].merge(osi[[*keys, "value"]], on=keys, suffixes=("", "_osi"))
+    return paired.assign(difference=paired["value"] - paired["value_osi"])
+
+
+UNITS = {"wiping": (" cm", 100.0, 1), "pushing": (" kg", 1.0, 2)}
+"""How each domain's parameter error is written: unit, scale from SI units and digits."""
+
+
+def _controllers(results: Path) -> dict[str, str]:
+    rows = _csv(results, "data/05_controllers.csv")
+    force = rows[rows["metric"] == "force_mean"].groupby(["method", "desired_height"])["value"].mean()
+    adm, spd = force["admittance"], force["spd"]
+    seeds = rows.loc[rows["metric"] == "force_mean", "seed"].nunique()
+    held = verdicts.holds_in_all(bool((adm < spd).all()), environments=seeds)
+    return {
+        "fig7_verdict": WORDS[held],
+        **{f"adm_{k}": f"{f(adm):.0f}" for k, f in (("low", np.min), ("high", np.max))},
+        **{f"spd_{k}": f"{f(spd):.0f}" for k, f in (("low", np.min), ("high", np.max))},
+    }
+
+
+def _feedback(results: Path, root: Path) -> dict[str, str]:
+    rows = _csv(results, "data/01_r1_feedback.csv")
+    per_seed = rows.pivot_table(index=["method", "seed"], columns="episode", values="value")
+    window = min(10, per_seed.shape[1] // 2)
+    first = per_seed.iloc[:, :window].mean(axis=1).unstack("method")
+    last = per_seed.iloc[:, -window:].mean(axis=1).unstack("method")
+    tabular = verdicts.bootstrap_mean(last["tabular_coach"] - first["tabular_coach"])
+    pretrained = verdicts.bootstrap_mean(last["pretrained_coach"] - first["pretrained_coach"])
+    held = verdicts.combine(
+        [verdicts.better(tabular, lower_is_better=False), verdicts.better(pretrained, lower_is_better=True)]
+    )
+    params = yaml.safe_load((root / "params" / "full" / "01_r1_feedback.yaml").read_text())
+    return {
+        "fig2c_verdict": WORDS[held],
+        "window": str(window),
+        "demos": f"{params['demos']:,}",
+        "tabular_last": f"{last['tabular_coach'].mean():.0f}",
+        "pretrained_first": f"{first['pretrained_coach'].mean():.1f}",
+        "pretrained_last": f"{last['pretrained_coach'].mean():.1f}",
+        "pretrained_change": interval(pretrained, "", 1),
+        "coach_seeds": str(pretrained.n),
+    }
+
+
+def _pesi(results: Path) -> dict[str, str]:
+    rows = _csv(results, "data/02_r1_pesi.csv")
+    out: dict[str, str] = {}
+    final, over_time = [], []
+    for domain, (unit, scale, digits) in UNITS.items():
+        d = verdicts.paired_difference(
+            rows[rows["domain"] == domain], metric="param_error", method="pesi", baseline="osi"
+        )
+        final.append(verdicts.better(d, lower_is_better=True))
+        out[f"pesi_{domain}"] = interval(d, unit, digits, scale)
+        differences = _differences(rows, domain)
+        slope = verdicts.trend(differences, x="episode", y="difference", units=("ground_truth", "seed"))
+        over_time.append(verdicts.decreases(slope))
+        out[f"time_slope_{domain}"] = slope_text(slope, unit, digits, 100 * scale)
+        steps = verdicts.steps(differences, x="episode", y="difference", units=("ground_truth", "seed"))
+        out[f"time_steps_{domain}"] = significant_steps(steps, increasing=False)
+    wiping = rows[rows["domain"] == "wiping"]
+    ce = verdicts.paired_difference(wiping, metric="param_error", method="pesi", baseline="pesi_ce")
+    environments = wiping[["ground_truth", "seed"]].drop_duplicates()
+    return {
+        **out,
+        "environments": str(len(environments)),
+        "truths": str(environments["ground_truth"].nunique()),
+        "seeds": str(environments["seed"].nunique()),
+        "pesi_episodes": str(int(rows["episode"].max())),
+        "fig2d_verdict": WORDS[verdicts.combine(final)],
+        "time_verdict": WORDS[verdicts.combine(over_time)],
+        "ce_verdict": WORDS[verdicts.better(ce, lower_is_better=True)],
+        "ce_wiping": interval(ce, " cm", 1, 100.0),
+    }
+
+
+def _noise(results: Path) -> dict[str, str]:
+    rows = _csv(results, "data/03_r2_noise.csv")
+    errors = rows[rows["metric"] == "param_error"]
+    out: dict[str, str] = {}
+    grows, unlearns = [], []
+    for domain, (unit, scale, digits) in UNITS.items():
+        pesi = errors[(errors["domain"] == domain) & (errors["method"] == "pesi")]
+        final = pesi[pesi["episode"] == pesi["episode"].max()]
+        slope = verdicts.trend(final, x="noise", units=("ground_truth", "seed"))
+        grows.append(verdicts.increases(slope))
+        out[f"noise_slope_{domain}"] = slope_text(slope, unit, digits, scale)
+        steps = verdicts.steps(final, x="noise", units=("ground_truth", "seed"))
+        out[f"noise_steps_{domain}"] = significant_steps(steps, increasing=True)
+        high = _differences(rows[(rows["noise"] == 0.6) | (rows["method"] == "osi")], domain)
+        over_time = verdicts.trend(high, x="episode", y="difference", units=("ground_truth", "seed"))
+        unlearns.append(verdicts.increases(over_time))
+        out[f"unlearn_{domain}"] = slope_text(over_time, unit, digits, 100 * scale)
+    return {
+        **out,
+        "noise_verdict": WORDS[verdicts.combine(grows)],
+        "unlearn_verdict": WORDS[verdicts.combine(unlearns)],
+    }
+
+
+def _final(
+    rows: pd.DataFrame,
+    domain: str,
+    noise: float,
+    metric: str,
+    method: str = "co_pesi",
+    baseline: str = "pesi",
+) -> verdicts.Difference:
+    return verdicts.Difference(
+        *final_difference(rows, domain, noise, metric, method=method, baseline=baseline)
+    )
+
+
+def _copesi(results: Path) -> dict[str, str]:
+    rows = _csv(results, "data/04_r3_copesi.csv")
+    filters = _csv(results, "tables/04_filter_quality.csv")
+    estimated = _csv(results, "data/06_copesi_estimated.csv")
+    told = _final(estimated, "pushing", 0.1, "param_error", method="co_pesi", baseline="co_pesi_estimated")
+    return {
+        "co_w20": interval(_final(rows, "wiping", 0.2, "param_error"), " cm", 2, 100.0),
+        "co_w30": interval(_final(rows, "wiping", 0.3, "param_error"), " cm", 2, 100.0),
+        "co_w30_success": signed(_final(rows, "wiping", 0.3, "success_rate").mean, 2),
+        "co_p30_success": interval(_final(rows, "pushing", 0.3, "success_rate"), "", 2),
+        "precision_low": f"{filters['filter_precision'].min():.2f}",
+        "precision_high": f"{filters['filter_precision'].max():.2f}",
+        "recall_low": f"{filters['filter_recall'].min():.2f}",
+        "recall_high": f"{filters['filter_recall'].max():.2f}",
+        "chance_low": f"{filters['noise'].min():.1f}",
+        "chance_high": f"{filters['noise'].max():.1f}",
+        "estimated_p10": interval(told, " kg", 3),
+    }
+
+
+def _flip_rates(results: Path) -> dict[str, str]:
+    table = _csv(results, "tables/06_noise_rate_estimators.csv")
+    out = {}
+    for method, name in (("marginal_likelihood", "likelihood"), ("repeated_pair", "repeated")):
+        levels = table[table["method"] == method]
+        worst = levels.loc[levels["bias"].abs().idxmax()]
+        d = verdicts.Difference(worst["bias"], worst["bias_low"], worst["bias_high"], int(worst["datasets"]))
+        out[f"{name}_bias"] = interval(d, "", 3)
+        out[f"{name}_level"] = f"{worst['true_noise']:.2f}"
+        out["levels_low"] = f"{levels['true_noise'].min():.1f}"
+        out["levels_high"] = f"{levels['true_noise'].max():.1f}"
+    return out
+
+
+LEARNERS = {
+    "co_pesi_likelihood": "co-teaching with the likelihood rate",
+    "pesi_smoothed": "label smoothing",
+    "pesi_unbiased": "the unbiased loss",
+    "pesi_small_loss": "the small-loss filter",
+    "pesi_rime": "RIME's trust-and-flip",
+}
+"""How the README names notebook 11's learners."""
+
+TIMES = {0: "never", 1: "once", 2: "twice"}
+
+
+def _robust(results: Path) -> dict[str, str]:
+    table = _csv(results, "tables/11_teachers_and_robustness.csv")
+    settings = table[["domain", "teacher"]].drop_duplicates()
+    held, significant = [], []
+    ahead: dict[str, float] = {}
+    for domain, teacher in settings.itertuples(index=False):
+        learner, verdict, _ = best_learner(table, domain, teacher)
+        held.append(verdict)
+        error = table[(table["domain"] == domain) & (table["teacher"] == teacher)]
+        error = error[(error["method"] == learner) & (error["metric"] == "param_error")].iloc[0]
+        ahead[domain] = max(ahead.get(domain, 0.0), -float(error["mean"]))
+        d = verdicts.Difference(error["mean"], error["low"], error["high"], int(error["n"]))
+        if verdicts.better(d, lower_is_better=True) == "yes":
+            unit, scale, digits = (" mm", 1000.0, 2) if domain == "wiping" else (" kg", 1.0, 3)
+            setting = f"{LEARNERS[learner]} under the {teacher} teacher, {domain}"
+            significant.append(f"{setting}: {interval(d, unit, digits, scale)}")
+    noise = noise_table(_csv(results, "data/11_teachers_and_robustness.csv"))
+    myopic = noise[noise["teacher"] == "myopic"].set_index("domain")["bias"]
+    return {
+        "robust_verdict": WORDS[verdicts.any_of(held)],
+        "robust_teachers": str(table["teacher"].nunique()),
+        "robust_learners": str(table["method"].nunique()),
+        "robust_environments": str(int(table["n"].min())),
+        "robust_both": f"{held.count('yes')} of {len(held)}",
+        "robust_ahead_wiping": f"{1000 * ahead['wiping']:.1f}",
+        "robust_ahead_pushing": f"{ahead['pushing']:.2f}",
+        "robust_times": TIMES.get(len(significant), f"{len(significant)} times"),
+        "robust_significant": "; ".join(significant),
+        "myopic_wiping": signed(myopic["wiping"], 3),
+        "myopic_pushing": signed(myopic["pushing"], 3),
+    }
+
+
+def _table3(results: Path) -> dict[str, str]:
+    rows = _csv(results, "data/06_noise_estimation.csv")
+    table = _csv(results, "tables/table3.csv")
+    means = {}
+    for conflict in ("same_pair", "no_common_parameter"):
+        mean, low, high = overestimate(rows, method=f"algorithm5_{conflict}")
+        means[conflict] = verdicts.Difference(mean, low, high, int((rows["metric"] == "true_noise").sum()))
+    same = means["same_pair"]
+    listed = table[table["paper_estimated_noise"].notna()]
+    miss = (listed["estimated_noise_same_pair"] - listed["paper_estimated_noise"]).abs()
+    worst = listed.loc[miss.idxmax()]
+    return {
+        "alg5_verdict": WORDS[verdicts.within(same, 0.04, 0.08)],
+        "alg5_same_pair": f"{signed(100 * same.mean, 1)} % (CI {100 * same.low:.1f}-{100 * same.high:.1f})",
+        "alg5_common": f"{signed(100 * means['no_common_parameter'].mean, 1)} %",
+        "alg5_distance": f"{paper_distance(table)['same_pair']:.3f}",
+        "alg5_miss": signed(worst["estimated_noise_same_pair"] - worst["paper_estimated_noise"], 3),
+        "alg5_miss_level": f"{worst['true_noise']:.2f}",
+    }
+
+
+def _readings(results: Path) -> dict[str, str]:
+    """Notebook 08's readings and the pushing gain's first significant checkpoint in notebook 02."""
+    table = _csv(results, "tables/08_si_sensitivity.csv")
+    readings = table[table["variant"] != "previous_design"]
+    rows = _csv(results, "data/08_si_sensitivity.csv")
+    out = {
+        "readings_episodes": str(int(rows["episode"].max())),
+        "readings_environments": str(
+            len(rows[rows["domain"] == "wiping"][["ground_truth", "seed"]].drop_duplicates())
+        ),
+    }
+    for domain in UNITS:
+        at = readings[readings["domain"] == domain]
+        wins = at[at["pesi_minus_osi_high"] < 0]
+        out[f"readings_{domain}"] = f"{len(wins)} of {len(at)}"
+        out[f"readings_{domain}_names"] = ", ".join(wins["variant"]) or "none"
+        co = table[(table["domain"] == domain) & (table["copesi_minus_pesi_high"] < 0)]
+        out[f"readings_copesi_{domain}"] = str(len(co))
+    curve = _csv(results, "tables/02_pesi_minus_osi.csv")
+    pushing = curve[(curve["domain"] == "pushing") & (curve["metric"] == "param_error") & (curve["high"] < 0)]
+    out["pushing_first"] = str(int(pushing["episode"].min()))
+    noise = _csv(results, "data/03_r2_noise.csv")
+    final = noise[
+        (noise["method"] == "pesi") & (noise["metric"] == "param_error") & (noise["domain"] == "wiping")
+    ]
+    final = final[final["episode"] == final["episode"].max()].groupby("noise")["value"].mean()
+    out["noise_episodes"] = str(int(noise["episode"].max()))
+    out["noise_w0"], out["noise_w30"] = f"{100 * final[0.0]:.1f}", f"{100 * final[0.3]:.1f}"
+    return out
+
+
+def values(results: Path, root: Path) -> dict[str, str]:
+    """Every placeholder of `SECTIONS`, computed from the results directory `results`."""
+    return {
+        **_controllers(results),
+        **_feedback(results, root),
+        **_pesi(results),
+        **_noise(results),
+        **_copesi(results),
+        **_flip_rates(results),
+        **_robust(results),
+        **_readings(results),
+        **_table3(results),
+    }
+
+
+def render(results: Path, root: Path) -> dict[str, str]:
+    """Each section's text as `results` gives it."""
+    filled = values(results, root)
+    here = Path(__file__).parent
+    return {
+        name: (here / f"readme_{name}.md").read_text(encoding="utf-8").format(**filled) for name in SECTIONS
+    }
+
+
+def _pattern(name: str) -> re.Pattern[str]:
+    return re.compile(rf"(<!-- generated: {name} -->\n)(.*?)(<!-- end: {name} -->)", re.S)
+
+
+def _replaced(match: re.Match[str], text: str) -> str:
+    return match[1] + text + match[3]
+
+
+def update(readme: str, sections: dict[str, str]) -> str:
+    """`readme` with each generated section replaced; a section without its markers is refused."""
+    for name, text in sections.items():
+        pattern = _pattern(name)
+        if not pattern.search(readme):
+            raise ValueError(f"README lacks the markers of section {name!r}")
+        readme = pattern.sub(functools.partial(_replaced, text=text), readme)
+    return readme
+
+
+def differences(readme: str, sections: dict[str, str]) -> list[str]:
+    """The lines of `readme`'s generated sections that differ from `sections`, each as both lines."""
+    out = []
+    for name, text in sections.items():
+        found = _pattern(name).search(readme)
+        if not found:
+            out.append(f"section {name!r}: markers missing")
+            continue
+        have, want = found[2].splitlines(), text.splitlines()
+        out += [f"README:  {a}\nresults: {b}" for a, b in zip(have, want, strict=False) if a != b]
+        if len(have) != len(want):
+            out.append(f"section {name!r}: {len(have)} lines in the README, {len(want)} from results/")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="fail if README.md differs from results/")
+    parser.add_argument("--readme", type=Path, default=None, help="the README to write or check")
+    args = parser.parse_args(argv)
+    root = repo_root()
+    if root is None:
+        raise SystemExit("hipref.readme needs the source checkout (README.md and results/)")
+    path = args.readme or root / "README.md"
+    sections = render(root / "results", root)
+    text = path.read_text(encoding="utf-8")
+    if args.check:
+        wrong = differences(text, sections)
+        print("\n".join(wrong) or f"{path.name}: every generated number matches results/")
+        return 1 if wrong else 0
+    path.write_text(update(text, sections), encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
