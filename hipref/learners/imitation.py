@@ -14,6 +14,13 @@ al., 2017), each demonstration is executed with P's reference perturbed by a smo
 Ornstein-Uhlenbeck process, `perturbation`), while the labels stay P's own references: R then holds the
 corrections P makes from states off its path. `perturbation=0` is Algorithm 3 read literally.
 
+Teaching phi. Line 4 sets the simulator with phi and P is told it, so in R the phi column always equals the
+world's truth phi*: the network can read what it needs from the state (the wrist force the true parameter
+produces) and never sees how P's behaviour changes with phi, and then ignores its phi input (issue 29).
+`estimate_spread` > 0 sets the simulator with a truth phi* and tells P an estimate phi drawn around it
+(`estimate_around`), each row labelled with phi: pi^l imitates "P acting on phi" in a world whose truth is
+phi*, what an SI estimate asks of it. `estimate_spread = 0` is the paper's reading, phi = phi*.
+
 What the network predicts is q_bar - q, the offset of the reference from the joints now (the first six
 values of s), each input and output standardised by its mean and spread over R's first trajectories
 (`ImitationConfig.normalise_after`): P's own step, q + J^+ e, is an offset of the same kind, so the
@@ -70,6 +77,10 @@ class ImitationConfig:
     """Stationary spread in rad of the perturbation of each joint's reference in demonstrations (0: none)."""
     perturbation_time: float = 0.2
     """Correlation time in s of the perturbation: slow enough that the arm follows it off P's path."""
+    estimate_spread: float = 0.0
+    """Half-width, as a fraction of the parameter range, of the estimate phi P is told around the truth phi*
+    the simulator is set to (`estimate_around`); each row is labelled with phi. 0: phi = phi*, Algorithm 3
+    read as the paper writes it; 1: phi independent of phi*, uniform over the range."""
     normalise_after: int = 10
     """Trajectories in R from whose rows the inputs' and outputs' standardisation is measured; updates
     begin once it is (earlier iterations only collect)."""
@@ -91,6 +102,7 @@ class ImitationConfig:
         check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
         check_range("perturbation", self.perturbation, 0.0, 0.5)
         check_range("perturbation_time", self.perturbation_time, 1e-3, 10.0)
+        check_range("estimate_spread", self.estimate_spread, 0.0, 1.0)
         check_int("normalise_after", self.normalise_after, 1, self.iterations)
         check_int("seed", self.seed, 0)
         for iteration in self.snapshots:
@@ -110,6 +122,16 @@ def perturbation(
         current = decay * current + kicks[p]
         offsets[p] = current
     return offsets
+
+
+def estimate_around(rng: np.random.Generator, truth: float, low: float, high: float, spread: float) -> float:
+    """The estimate phi P is told in a world whose truth is `truth`: uniform over the range [low, high]
+    within `spread` x (high - low) of the truth (spread 1: uniform over the range, whatever the truth); with
+    spread 0, the truth itself and nothing drawn."""
+    if spread == 0.0:
+        return float(truth)
+    width = spread * (high - low)
+    return float(rng.uniform(max(low, truth - width), min(high, truth + width)))
 
 
 class ReplayBuffer:
@@ -219,6 +241,23 @@ class LearnedLowLevelPolicy:
         return inputs[:, :JOINTS] + self.offsets(inputs)
 
 
+def phi_response(
+    policy: Callable[[np.ndarray, np.ndarray, float], np.ndarray], tau: Trajectory, step: float
+) -> float:
+    """How much pi^l's joint reference moves with its phi input on tau's states and goals: the root mean
+    square over periods and joints of (pi^l(s, g, phi + step) - pi^l(s, g, phi)) / step, in rad per unit
+    of phi. 0 for a pi^l that ignores phi."""
+    if not np.isfinite(step) or step == 0.0:
+        raise ValueError(f"step must be a finite non-zero number, got {step!r}")
+    moved = np.array(
+        [
+            policy(state, goal, tau.phi + step) - policy(state, goal, tau.phi)
+            for state, goal in zip(tau.states, tau.goals, strict=True)
+        ]
+    )
+    return float(np.sqrt(np.mean((moved / step) ** 2)))
+
+
 class ImitationResult(NamedTuple):
     """Algorithm 3's product: the policy, and its training curve."""
 
@@ -230,8 +269,8 @@ class ImitationResult(NamedTuple):
 
 
 Collect = Callable[[Any, float, Callable[[int], np.ndarray]], Trajectory]
-"""`collect(goal, phi, perturb)`: set the simulator to phi and return P's trajectory under the goal, SPD
-tracking P's reference plus `perturb(periods)` (periods, 6)."""
+"""`collect(goal, phi, perturb)`: return the trajectory of P told phi under the goal (which may carry the
+truth the simulator is set to, else phi), SPD tracking P's reference plus `perturb(periods)` (periods, 6)."""
 
 
 def algorithm_streams(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
@@ -253,7 +292,8 @@ def collect_demonstrations(
     P does not depend on pi^l, so the trajectory of iteration i is the same whether the updates run between
     the collections or after them: collected from a stream of their own, the demonstrations are an artefact
     shared by every network trained on them, and iteration i's is the same in a short run and a long one.
-    `sample_goal_and_phi` draws a goal and a parameter; `collect` executes P, its reference perturbed as
+    `sample_goal_and_phi` draws a goal (with the truth phi* where it is not phi) and the parameter phi P is
+    told; `collect` executes P, its reference perturbed as
     `config` says (`control_period` s per row of the perturbation)."""
     rng, _ = algorithm_streams(config.seed)
     demonstrations = []
