@@ -87,3 +87,20 @@ def test_the_conditioning_check_tells_a_learned_slope_like_the_experts_from_one_
     ignored = conditioning(outcomes(0.0), "goal_overshoot", "learned")
     assert ignored.verdict == "no"
     assert ignored.difference.high < -1.5 and ignored.expert.low > 1.8
+
+
+def test_a_policy_blind_to_state_columns_acts_the_same_whatever_they_hold() -> None:
+    tau = PushingTask().demonstrate(12.0, PushingTask().sample_layout(np.random.default_rng(1)))
+    blind = tuple(range(15, 21))
+    config = ImitationConfig(
+        iterations=1, updates_per_iteration=5, normalise_after=1, hidden=(16,), blind=blind
+    )
+    policy = learn_low_level_policy([tau], STATE_SIZE, tau.goals.shape[1], config).policy
+    state, goal = tau.states[10], tau.goals[10]
+    moved = state.copy()
+    moved[list(blind)] += 0.3
+    assert np.array_equal(policy(state, goal, 12.0), policy(moved, goal, 12.0))
+    moved[6] += 0.3  # a column it sees
+    assert not np.array_equal(policy(state, goal, 12.0), policy(moved, goal, 12.0))
+    with pytest.raises(ValueError, match="blind"):
+        ImitationConfig(blind=(2,))

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from hipref.envs.low_level import REFERENCE
 from hipref.envs.pushing import PushingTask
 from hipref.envs.task import Task
 from hipref.envs.wiping import WipingTask
@@ -122,6 +123,9 @@ class LearnedControllerConfig(Protocol):
     the half-width, as a fraction of the parameter range, of the estimate the expert is told around the
     world's truth, each row labelled with the estimate. 0.0 is the paper's reading (told the truth); the
     last is the pi^l SI runs on. Distinct, each in [0, 1]."""
+    blind_reference: bool = False
+    """Whether pi^l does without the last period's joint reference among the state's features
+    (`ImitationConfig.blind`): the next reference can be extrapolated from it without reading phi."""
     held_out_episodes: int = 3
     """Episodes with the true parameter on held-out seeds, executed by every low level."""
     held_out_seed: int = 1
@@ -172,6 +176,7 @@ class LearnedControllerConfig(Protocol):
             perturbation_time=self.perturbation_time,
             snapshots=tuple(self.snapshots),
             estimate_spread=estimate_spread,
+            blind=tuple(range(REFERENCE.start, REFERENCE.stop)) if self.blind_reference else (),
         )
 
     def learned(self) -> list[LowLevel]:
@@ -322,7 +327,7 @@ def preparation_cells(config: LearnedControllerConfig) -> list[PreparationCell]:
 
 def comparison_cells(config: LearnedControllerConfig) -> list[ComparisonCell]:
     """Every (domain, error) executed by the analytic low level and each learned one on the same episodes;
-    in wiping, each learned one's routes apart at every error but 0; with the true parameter, also each
+    in wiping, the last reading's routes apart at every error but 0; with the true parameter, also each
     snapshot of the last reading's, and every low level on the held-out episodes."""
     analytic, learned = LowLevel(), config.learned()
     cells = []
@@ -334,10 +339,10 @@ def comparison_cells(config: LearnedControllerConfig) -> list[ComparisonCell]:
         routes = ROUTES if domain == "wiping" else ROUTES[:1]
         for error in errors:
             cells.append(ComparisonCell(domain, analytic, float(error), seeds))
-            for low_level in learned:
+            cells += [ComparisonCell(domain, low_level, float(error), seeds) for low_level in learned]
+            if error != 0.0:
                 cells += [
-                    ComparisonCell(domain, low_level, float(error), seeds, route=route)
-                    for route in (routes if error != 0.0 else ROUTES[:1])
+                    ComparisonCell(domain, learned[-1], float(error), seeds, route=r) for r in routes[1:]
                 ]
         cells += [ComparisonCell(domain, learned[-1], 0.0, seeds, snapshot) for snapshot in config.snapshots]
         cells += [ComparisonCell(domain, ll, 0.0, held_out, held_out=True) for ll in [analytic, *learned]]

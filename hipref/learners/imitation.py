@@ -81,6 +81,10 @@ class ImitationConfig:
     """Half-width, as a fraction of the parameter range, of the estimate phi P is told around the truth phi*
     the simulator is set to (`estimate_around`); each row is labelled with phi. 0: phi = phi*, Algorithm 3
     read as the paper writes it; 1: phi independent of phi*, uniform over the range."""
+    blind: tuple[int, ...] = ()
+    """Columns of the state pi^l does not see (0 in its inputs, in R and when it acts), each past the joint
+    positions: e.g. the last period's joint reference (`hipref.envs.low_level.REFERENCE`), from which the
+    next reference can be extrapolated without reading phi. (): the whole state."""
     normalise_after: int = 10
     """Trajectories in R from whose rows the inputs' and outputs' standardisation is measured; updates
     begin once it is (earlier iterations only collect)."""
@@ -103,6 +107,10 @@ class ImitationConfig:
         check_range("perturbation", self.perturbation, 0.0, 0.5)
         check_range("perturbation_time", self.perturbation_time, 1e-3, 10.0)
         check_range("estimate_spread", self.estimate_spread, 0.0, 1.0)
+        for column in self.blind:
+            check_int("blind", column, JOINTS)
+        if len(set(self.blind)) != len(self.blind):
+            raise ValueError(f"blind must hold distinct columns, got {list(self.blind)!r}")
         check_int("normalise_after", self.normalise_after, 1, self.iterations)
         check_int("seed", self.seed, 0)
         for iteration in self.snapshots:
@@ -137,8 +145,8 @@ def estimate_around(rng: np.random.Generator, truth: float, low: float, high: fl
 class ReplayBuffer:
     """R: every (state, goal, phi, q_bar) row of the trajectories pushed so far."""
 
-    def __init__(self, state_size: int, goal_size: int) -> None:
-        self.state_size, self.goal_size = state_size, goal_size
+    def __init__(self, state_size: int, goal_size: int, blind: tuple[int, ...] = ()) -> None:
+        self.state_size, self.goal_size, self.blind = state_size, goal_size, blind
         self._inputs: list[np.ndarray] = []
         self._targets: list[np.ndarray] = []
         self._rows = 0
@@ -150,7 +158,7 @@ class ReplayBuffer:
 
     def push(self, tau: Trajectory) -> None:
         """Line 8: push tau's rows into R; a tau of other shapes than R's is refused."""
-        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size)
+        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size, self.blind)
         references = np.asarray(tau.references, dtype=float)
         if references.shape != (len(inputs), JOINTS):
             raise ValueError(f"references must be ({len(inputs)}, {JOINTS}), got shape {references.shape}")
@@ -174,10 +182,16 @@ class ReplayBuffer:
 
 
 def policy_inputs(
-    states: np.ndarray, goals: np.ndarray, phi: float, state_size: int, goal_size: int
+    states: np.ndarray,
+    goals: np.ndarray,
+    phi: float,
+    state_size: int,
+    goal_size: int,
+    blind: tuple[int, ...] = (),
 ) -> np.ndarray:
-    """The network's input rows (state, goal, phi); states and goals of other shapes than pi^l's, or a phi
-    that is not one finite number, are refused before anything is computed."""
+    """The network's input rows (state, goal, phi), the state's `blind` columns 0; states and goals of
+    other shapes than pi^l's, or a phi that is not one finite number, are refused before anything is
+    computed."""
     states, goals = np.asarray(states, dtype=float), np.asarray(goals, dtype=float)
     if states.ndim != 2 or states.shape[1] != state_size:
         raise ValueError(f"states must be (periods, {state_size}), got shape {states.shape}")
@@ -185,7 +199,9 @@ def policy_inputs(
         raise ValueError(f"goals must be ({len(states)}, {goal_size}), got shape {goals.shape}")
     if np.ndim(phi) != 0 or not np.isfinite(phi):
         raise ValueError(f"phi must be one finite number, got {phi!r}")
-    return np.concatenate([states, goals, np.full((len(states), 1), float(phi))], axis=1)
+    inputs = np.concatenate([states, goals, np.full((len(states), 1), float(phi))], axis=1)
+    inputs[:, list(blind)] = 0.0
+    return inputs
 
 
 class Standardisation(NamedTuple):
@@ -213,8 +229,15 @@ class LearnedLowLevelPolicy:
     trained network's weights in float64 numpy arrays, so that a control period costs a few small
     matrix products and no torch call."""
 
-    def __init__(self, network: nn.Sequential, scaling: Standardisation, state_size: int, goal_size: int):
-        self.state_size, self.goal_size = state_size, goal_size
+    def __init__(
+        self,
+        network: nn.Sequential,
+        scaling: Standardisation,
+        state_size: int,
+        goal_size: int,
+        blind: tuple[int, ...] = (),
+    ):
+        self.state_size, self.goal_size, self.blind = state_size, goal_size, blind
         self.scaling = scaling
         linears = [m for m in network if isinstance(m, nn.Linear)]
         self.weights = [m.weight.detach().numpy().astype(np.float64) for m in linears]
@@ -232,12 +255,12 @@ class LearnedLowLevelPolicy:
     def __call__(self, state: np.ndarray, goal: np.ndarray, phi: float) -> np.ndarray:
         """q_bar for one state s (state size), goal g (goal size) and phi."""
         state, goal = np.asarray(state, dtype=float), np.asarray(goal, dtype=float)
-        inputs = policy_inputs(state[None], goal[None], phi, self.state_size, self.goal_size)
+        inputs = policy_inputs(state[None], goal[None], phi, self.state_size, self.goal_size, self.blind)
         return inputs[0, :JOINTS] + self.offsets(inputs)[0]
 
     def references(self, tau: Trajectory) -> np.ndarray:
         """q_bar for each period of a trajectory's states (what it would give P's states)."""
-        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size)
+        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size, self.blind)
         return inputs[:, :JOINTS] + self.offsets(inputs)
 
 
@@ -320,7 +343,7 @@ def learn_low_level_policy(
             f"Algorithm 3 runs {config.iterations} iterations, got {len(demonstrations)} trajectories"
         )
     _, rng = algorithm_streams(config.seed)
-    buffer = ReplayBuffer(state_size, goal_size)
+    buffer = ReplayBuffer(state_size, goal_size, config.blind)
     network: nn.Sequential | None = None
     optimiser: torch.optim.Optimizer | None = None
     scaling: Standardisation | None = None
@@ -348,7 +371,9 @@ def learn_low_level_policy(
             optimiser.step()
             losses.append(float(loss.detach()))
         if buffer.trajectories in config.snapshots:
-            snapshots[buffer.trajectories] = LearnedLowLevelPolicy(network, scaling, state_size, goal_size)
+            snapshots[buffer.trajectories] = LearnedLowLevelPolicy(
+                network, scaling, state_size, goal_size, config.blind
+            )
     assert network is not None and scaling is not None
-    policy = LearnedLowLevelPolicy(network, scaling, state_size, goal_size)
+    policy = LearnedLowLevelPolicy(network, scaling, state_size, goal_size, config.blind)
     return ImitationResult(policy, np.array(losses), snapshots)
