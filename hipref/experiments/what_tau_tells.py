@@ -352,11 +352,23 @@ def _osi_and_constants(
     return frames
 
 
-def measure_cell(cell: tuple[str, TauConfig]) -> pd.DataFrame:
+@dataclass(frozen=True)
+class TauCell:
     """One domain's measurements as a sweep cell."""
-    return measure_domain(*cell)
+
+    domain: str
+    """'wiping' or 'pushing'."""
+    config: TauConfig
+    """The measurements."""
+
+
+def measure_cell(cell: TauCell) -> pd.DataFrame:
+    """`measure_domain` of one cell."""
+    return measure_domain(cell.domain, cell.config)
 
 
 def run(config: TauConfig) -> pd.DataFrame:
     """Every domain's measurements, the domains side by side."""
-    return run_sweep(measure_cell, [(domain, config) for domain in config.domains], desc="what tau tells")
+    return run_sweep(
+        measure_cell, [TauCell(domain, config) for domain in config.domains], desc="what tau tells"
+    )
