@@ -229,9 +229,10 @@ def _environment_rows(
 def _frame(
     rows: list[tuple[float, str, float]], domain: str, method: str, factor: str, level: str, seed: int
 ) -> pd.DataFrame:
-    frame = pd.DataFrame(rows, columns=["ground_truth", "metric", "value"])
+    """Tidy rows of (true parameter, metric, value) triples of one method in one setting."""
     return tidy_rows(
-        frame.to_dict("records"),
+        rows,
+        ("ground_truth", "metric", "value"),
         domain=domain,
         method=method,
         noise=0.0,
