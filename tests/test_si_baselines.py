@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+import torch
 
 from hipref.experiments.constant_guess import CONSTANT_BEST, CONSTANT_MIDDLE, constant_guess_rows
 from hipref.experiments.si_pretraining import PretrainData, collect_trajectories, cut_slices
 from hipref.experiments.what_tau_tells import TauConfig, regressor_estimates, select_slices
 from hipref.learners.calibration import coverage, pit
-from hipref.learners.sysid import CUBE_MASS
+from hipref.learners.sysid import CUBE_MASS, PretrainConfig, SIModel, pretrain
 
 
 def test_the_constant_guess_errs_by_the_mean_distance_from_the_middle_and_the_median():
@@ -65,3 +66,19 @@ def test_smaller_collections_are_the_first_trajectories_of_larger_ones():
 def test_a_held_out_collection_must_have_its_own_seed():
     with pytest.raises(ValueError, match="test_seed"):
         TauConfig(seed=3, test_seed=3)
+
+
+def test_nll_pretraining_reads_an_informative_feature_and_covers_the_truth():
+    rng = np.random.default_rng(0)
+    phi = rng.uniform(8.0, 20.0, size=2000)
+    features = np.c_[phi + rng.normal(0.0, 1.0, size=phi.size), rng.normal(size=(phi.size, 3))]
+    model = SIModel(4, CUBE_MASS, hidden_sizes=(32,), seed=0)
+    pretrain(model, features[:1500], phi[:1500], PretrainConfig(1e-2, n_steps=600, loss="nll"), 0)
+    held_out = torch.as_tensor(features[1500:], dtype=torch.float32)
+    with torch.no_grad():
+        probabilities = model.distribution(held_out).double().numpy()
+    error = np.abs(probabilities @ CUBE_MASS.values - phi[1500:]).mean()
+    assert error < 0.5 * np.abs(14.0 - phi[1500:]).mean()
+    # The feature's noise is 1 kg: a posterior of about that width holds the truth about 90 % of the time.
+    probabilities /= probabilities.sum(axis=1, keepdims=True)
+    assert 0.8 <= coverage(pit(probabilities, CUBE_MASS, phi[1500:]), 0.9) <= 0.97
