@@ -12,9 +12,10 @@ algorithm never reuses stale rows. `cached_artefact` does the same for expensive
 pre-training dataset, a pretrained model, demonstrations), and `cached_prefix` for lists of them that
 studies of different lengths share (evaluation checkpoints, learning clips).
 
-A cache entry is used only if it holds what would be computed: a cell's entry must be a DataFrame with
-the tidy columns, an artefact's whatever its caller's `expect` says; anything else (a damaged, stale or
-foreign pickle) is recomputed with a warning.
+A cache entry is used only if it holds what would be computed: it carries the key it was stored under and
+a checksum of its payload, which must match; a cell's entry must be a DataFrame with the tidy columns, an
+artefact's whatever its caller's `expect` says; anything else (a damaged, stale, moved or foreign pickle) is
+recomputed with a warning. A cache directory that cannot be written is refused before any compute.
 
 Local workers never outlive the sweep: an interrupted sweep (KeyboardInterrupt, or the loop over its rows
 closed early) terminates the cells still running, and a worker whose parent dies (a notebook kernel
@@ -82,16 +83,48 @@ _PR_SET_PDEATHSIG = 1
 
 
 class SweepError(RuntimeError):
-    """Some cells failed; the others ran to the end (and were cached). `failures`: (cell, traceback text)."""
+    """Some cells failed; the others ran to the end (and were cached). `failures`: (cell, traceback text);
+    `log`: the file holding every traceback in full (None if it could not be written)."""
 
-    def __init__(self, failures: list[tuple[Any, str]], total: int) -> None:
+    def __init__(self, failures: list[tuple[Any, str]], total: int, log: Path | None = None) -> None:
         self.failures = failures
-        parts = [
-            f"{len(failures)} of {total} cells failed; the others ran to the end and, unless caching"
-            " is off, were cached: fix the cause and run the sweep again to compute only these."
-        ]
-        parts += [f"\n--- {cell!r}\n{tb.rstrip()}" for cell, tb in failures]
-        super().__init__("\n".join(parts))
+        self.log = log
+        shown = ", ".join(repr(cell) for cell, _ in failures[:_CELLS_SHOWN])
+        more = f" and {len(failures) - _CELLS_SHOWN} more" if len(failures) > _CELLS_SHOWN else ""
+        first_cell, first = failures[0]
+        last_lines = "\n".join(first.rstrip().splitlines()[-_LINES_SHOWN:])
+        where = f"every traceback in full: {log}" if log else "(the tracebacks could not be logged)"
+        super().__init__(
+            f"{len(failures)} of {total} cells failed ({shown}{more}); the others ran to the end and, unless"
+            " caching is off, were cached: fix the cause and run the sweep again to compute only these.\n"
+            f"The first error (cell {first_cell!r}) ends:\n{last_lines}\n{where}"
+        )
+
+
+_CELLS_SHOWN = 3
+"""Failed cells a SweepError's message names; the log names all."""
+_LINES_SHOWN = 6
+"""Last lines of the first failure's traceback a SweepError's message shows."""
+
+
+def _failure_log(directory: Path | None, desc: str, failures: list[tuple[Any, str]]) -> Path | None:
+    """Write every failed cell and its traceback to a new log file (under the cache directory's `logs/`,
+    else the system's temporary directory) and return its path; None if it cannot be written."""
+    import tempfile
+    import time
+
+    text = "".join(f"--- {cell!r}\n{tb.rstrip()}\n\n" for cell, tb in failures)
+    name = "".join(c if c.isalnum() else "-" for c in desc)
+    stamp = time.strftime("%Y%m%dT%H%M%S")
+    try:
+        if directory is not None:
+            return write_bytes(text.encode(), directory / "logs" / f"{name}-{stamp}-{os.getpid()}.log")
+        fd, path = tempfile.mkstemp(prefix=f"hipref-{name}-{stamp}-", suffix=".log")
+        with open(fd, "w") as f:
+            f.write(text)
+        return Path(path)
+    except OSError:
+        return None
 
 
 NOT_IN_ROWS: tuple[str, ...] = ("bench", "notebook.py", "plots.py", "verdicts.py")
@@ -223,26 +256,73 @@ def _rows_problem(rows: Any) -> str | None:
     return f"its rows lack the tidy column(s) {missing}" if missing else None
 
 
-def _load(path: Path, problem: Callable[[Any], str | None] | None = None) -> tuple[bool, Any]:
-    """Read a cache entry; (False, None) when absent, unreadable or, by `problem`, not what it should
-    hold, with a warning in the last two cases."""
+_ENTRY_FORMAT = "hipref-cache-1"
+"""Marks a cache entry: a pickled dict of this format, the key it was stored under, the sha256 of its
+payload and the payload (the pickled value)."""
+
+
+def write_entry(path: Path, key: str, value: Any) -> None:
+    """Store `value` at `path` (atomically) as an entry of `key`."""
+    payload = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    entry = {
+        "format": _ENTRY_FORMAT,
+        "key": key,
+        "sha256": hashlib.sha256(payload).hexdigest(),
+        "payload": payload,
+    }
+    write_bytes(pickle.dumps(entry, protocol=pickle.HIGHEST_PROTOCOL), path)
+
+
+def read_entry(path: Path) -> tuple[str, Any]:
+    """(key, value) of the entry at `path`; ValueError when it is no intact entry."""
+    with path.open("rb") as f:
+        entry = pickle.load(f)
+    if not (isinstance(entry, dict) and entry.get("format") == _ENTRY_FORMAT):
+        raise ValueError(
+            f"it is no cache entry (a bare {type(entry).__name__}, without the key it was stored under)"
+        )
+    payload = entry["payload"]
+    if hashlib.sha256(payload).hexdigest() != entry["sha256"]:
+        raise ValueError("its payload does not match its checksum")
+    return entry["key"], pickle.loads(payload)
+
+
+def _load(path: Path, key: str, problem: Callable[[Any], str | None] | None = None) -> tuple[bool, Any]:
+    """Read the cache entry of `key`; (False, None) when absent, unreadable, stored under another key or,
+    by `problem`, not what it should hold, with a warning in the last three cases."""
     if not path.exists():
         return False, None
     try:
-        with path.open("rb") as f:
-            value = pickle.load(f)
+        stored, value = read_entry(path)
     except Exception as err:
-        reason: str | None = f"it is unreadable: {err!r}"
+        reason: str | None = f"it is unreadable: {err}"
     else:
-        reason = None if problem is None else problem(value)
+        if stored != key:
+            reason = f"it was stored under the key {stored[:16]}..., not this entry's {key[:16]}..."
+        else:
+            reason = None if problem is None else problem(value)
     if reason is not None:
         warnings.warn(f"ignoring cache entry {path}: {reason}; recomputing it", stacklevel=3)
         return False, None
     return True, value
 
 
-def _store(path: Path, value: Any) -> None:
-    write_bytes(pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL), path)
+def check_writable(cache: Path | None, part: str) -> None:
+    """Refuse, before any compute, a cache directory whose `part` (cells, artefacts) cannot take entries:
+    not creatable, not a directory, or not writable (a file written and removed in it proves it)."""
+    if cache is None:
+        return
+    directory = cache / part
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        probe = directory / f".write-check.{os.getpid()}.tmp"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as err:
+        raise PermissionError(
+            f"the cache directory {directory} cannot be written ({err.strerror or err}); set "
+            "HIPREF_CACHE_DIR (or cache_dir=) to a writable directory, or pass cache_dir=NO_CACHE"
+        ) from None
 
 
 def _init_worker() -> None:
@@ -314,22 +394,48 @@ def _run_cell(fn: CellFn, cell: Any, cache_dir: CacheDir = None) -> tuple[bool, 
 
 
 def _run_local(fn: CellFn, cells: dict[str, Any], workers: int, cache_dir: CacheDir) -> Outcomes:
-    """Yield (key, ok, result) as cells finish, in-process or on a pool of spawned processes."""
+    """Yield (key, ok, result) as cells finish, in-process or on a pool of spawned processes.
+
+    A worker process that dies (killed, out of memory) breaks the pool and loses every cell it had not
+    finished; those cells run once more on a fresh pool, and fail only if they are lost again."""
     if workers <= 1 or len(cells) <= 1:
         for key, cell in cells.items():
             yield key, *_run_cell(fn, cell, cache_dir)
         return
+    lost = yield from _run_pool(fn, cells, workers, cache_dir)
+    if lost:
+        warnings.warn(
+            f"{len(lost)} cell(s) lost their worker process (killed, out of memory): running them again",
+            stacklevel=2,
+        )
+        lost_again = yield from _run_pool(fn, {key: cells[key] for key in lost}, workers, cache_dir)
+        for key, text in lost_again.items():
+            yield key, False, text
+
+
+def _run_pool(
+    fn: CellFn, cells: dict[str, Any], workers: int, cache_dir: CacheDir
+) -> Generator[tuple[str, bool, Any], None, dict[str, str]]:
+    """Yield (key, ok, result) of the cells that finish on one pool; return {key: traceback} of those
+    whose worker died."""
+    from concurrent.futures.process import BrokenProcessPool
+
     # "spawn" starts clean interpreters: safe under Jupyter and with torch, where fork can deadlock.
     context = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(min(workers, len(cells)), mp_context=context, initializer=_init_worker)
     finished = False
+    lost: dict[str, str] = {}
     try:
         futures = {pool.submit(_run_cell, fn, cell, cache_dir): key for key, cell in cells.items()}
         for future in as_completed(futures):
             try:
-                yield futures[future], *future.result()
-            except Exception:  # the worker process died (e.g. out of memory)
-                yield futures[future], False, traceback.format_exc()
+                outcome = future.result()
+            except BrokenProcessPool:
+                lost[futures[future]] = traceback.format_exc()
+                continue
+            except Exception:  # the cell's rows could not be sent back (e.g. not picklable)
+                outcome = (False, traceback.format_exc())
+            yield futures[future], *outcome
         finished = True
     finally:
         if not finished:
@@ -337,6 +443,7 @@ def _run_local(fn: CellFn, cells: dict[str, Any], workers: int, cache_dir: Cache
             # the running cells, so stop them rather than wait for them.
             _terminate_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+    return lost
 
 
 def _terminate_workers(pool: ProcessPoolExecutor) -> None:
@@ -369,7 +476,7 @@ def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str, cache_dir: Cach
                 yield futures[future], False, traceback.format_exc()
 
 
-def _store_rows(fn: CellFn, path: Path, rows: pd.DataFrame) -> None:
+def _store_rows(fn: CellFn, path: Path, key: str, rows: pd.DataFrame) -> None:
     """Cache a cell's rows, unless they could never be loaded back as a valid entry."""
     problem = _rows_problem(rows)
     if problem is not None:
@@ -379,7 +486,7 @@ def _store_rows(fn: CellFn, path: Path, rows: pd.DataFrame) -> None:
             stacklevel=3,
         )
         return
-    _store(path, rows)
+    write_entry(path, key, rows)
 
 
 def run_sweep(
@@ -405,12 +512,13 @@ def run_sweep(
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     directory = _resolve_cache_dir(cache_dir)
+    check_writable(directory, "cells")
     cells_cache: CacheDir = NO_CACHE if directory is None else directory  # where the cells' artefacts go
     keys = [cell_key(fn, cell) for cell in cells]
     done: dict[str, pd.DataFrame] = {}
     if directory is not None:
         for key in dict.fromkeys(keys):
-            found, rows = _load(directory / "cells" / f"{key}.pkl", _rows_problem)
+            found, rows = _load(directory / "cells" / f"{key}.pkl", key, _rows_problem)
             if found:
                 done[key] = rows
     # Equal cells share a key and are computed once.
@@ -432,14 +540,13 @@ def run_sweep(
                     if ok:
                         done[key] = result
                         if directory is not None:
-                            _store_rows(fn, directory / "cells" / f"{key}.pkl", result)
+                            _store_rows(fn, directory / "cells" / f"{key}.pkl", key, result)
                     else:
                         failures[key] = result
                     bar.update(count[key])
     if failures:
-        raise SweepError(
-            [(cell, failures[key]) for key, cell in pending.items() if key in failures], len(cells)
-        )
+        failed = [(cell, failures[key]) for key, cell in pending.items() if key in failures]
+        raise SweepError(failed, len(cells), _failure_log(directory, desc, failed))
     if not cells:
         return pd.DataFrame()
     return pd.concat([done[key] for key in keys], ignore_index=True)
@@ -473,15 +580,16 @@ def cached_artefact(
     if key in _ARTEFACTS:
         return _ARTEFACTS[key]
     directory = _resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
+    check_writable(directory, "artefacts")
     path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
-    found, value = (False, None) if path is None else _load(path, problem)
+    found, value = (False, None) if path is None else _load(path, key, problem)
     if not found:
         value = build()
         reason = None if problem is None else problem(value)
         if reason is not None:
             raise TypeError(f"artefact {name!r} was built but not cached, as {reason}")
         if path is not None:
-            _store(path, value)
+            write_entry(path, key, value)
     _ARTEFACTS[key] = value
     return value
 
@@ -508,6 +616,7 @@ def cached_prefix(
     held = _ARTEFACTS.get(key)
     if held is None or len(held) < length:
         directory = _resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
+        check_writable(directory, "artefacts")
         path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
 
         def problem(value: Any) -> str | None:
@@ -517,14 +626,14 @@ def cached_prefix(
                 return "an item fails its check"
             return None
 
-        found, held = (False, None) if path is None else _load(path, problem)
+        found, held = (False, None) if path is None else _load(path, key, problem)
         if not found or len(held) < length:
             held = build(length)
             reason = problem(held)
             if reason is not None or len(held) != length:
                 raise TypeError(f"artefact {name!r} was built but not cached, as {reason or 'its length'}")
             if path is not None:
-                _store(path, held)
+                write_entry(path, key, held)
         _ARTEFACTS[key] = held
     return held[:length]
 
