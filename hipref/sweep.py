@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING, Any, Literal, TypeVar
 from tqdm.auto import tqdm
 
 import hipref
-from hipref.numerics import one_thread
+from hipref.numerics import one_thread, warn_overrides
 from hipref.results import TIDY_COLUMNS, repo_root, write_bytes
 
 if TYPE_CHECKING:
@@ -513,6 +513,7 @@ def run_sweep(
         raise ValueError(f"workers must be at least 1, got {workers}")
     directory = _resolve_cache_dir(cache_dir)
     check_writable(directory, "cells")
+    warn_overrides()
     cells_cache: CacheDir = NO_CACHE if directory is None else directory  # where the cells' artefacts go
     keys = [cell_key(fn, cell) for cell in cells]
     done: dict[str, pd.DataFrame] = {}
