@@ -489,6 +489,17 @@ def _store_rows(fn: CellFn, path: Path, key: str, rows: pd.DataFrame) -> None:
     write_entry(path, key, rows)
 
 
+def _check_sweep_input(fn: CellFn, workers: Any) -> None:
+    """Refuse, before any compute, a `workers` that is no whole number of at least 1, and an `fn` that
+    workers cannot import by name (a lambda or a nested function, which would also share a cache key with
+    any other of its name)."""
+    if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
+        raise ValueError(f"workers must be an integer at least 1 or None, got {workers!r}")
+    name = getattr(fn, "__qualname__", None)
+    if not callable(fn) or name is None or "<" in name:
+        raise ValueError(f"fn must be a module-level function (workers import it by name), got {fn!r}")
+
+
 def run_sweep(
     fn: CellFn,
     cells: Sequence[Any],
@@ -509,8 +520,7 @@ def run_sweep(
     """
     import pandas as pd
 
-    if workers is not None and workers < 1:
-        raise ValueError(f"workers must be at least 1, got {workers}")
+    _check_sweep_input(fn, workers)
     directory = _resolve_cache_dir(cache_dir)
     check_writable(directory, "cells")
     warn_overrides()

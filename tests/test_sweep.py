@@ -137,7 +137,7 @@ def test_progress_counts_cached_cells_as_done(tmp_path: Path, capsys: pytest.Cap
 
 
 def test_workers_must_be_positive() -> None:
-    with pytest.raises(ValueError, match="workers must be at least 1, got 0"):
+    with pytest.raises(ValueError, match="workers must be an integer at least 1 or None, got 0"):
         run_sweep(toy_cell, grid(), cache_dir=False, workers=0)
 
 
