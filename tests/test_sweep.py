@@ -191,8 +191,10 @@ def test_failing_cell_reports_config_and_traceback_and_others_are_cached(
 
 
 def test_wrong_return_type_is_a_failure(tmp_path: Path) -> None:
-    with pytest.raises(SweepError, match="returned list, not a pandas DataFrame"):
+    with pytest.raises(SweepError, match="returned list, not a pandas DataFrame") as raised:
         run_sweep(_returns_list, [ToyCell(seed=0)], cache_dir=False, workers=1)
+    assert raised.value.log is not None
+    raised.value.log.unlink()  # without a cache the log goes to the system's temporary directory
 
 
 def _returns_list(cell: ToyCell) -> list[int]:
