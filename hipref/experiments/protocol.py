@@ -12,7 +12,7 @@ from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import PretrainCell, PretrainData, pretrain_models
 from hipref.experiments.si_run import FineTuning, SIRun
 from hipref.sweep import CacheDir
-from hipref.validation import check_grids, check_int, check_range
+from hipref.validation import check_int, check_range
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,6 @@ class Protocol:
     """Gradient step size of SI fine-tuning (A.7: 0.01)."""
 
     def __post_init__(self) -> None:
-        check_grids(self)
         for name, values, domain in (("heights", self.heights, "wiping"), ("masses", self.masses, "pushing")):
             candidates = domain_spec(domain).candidates
             if not values:
