@@ -15,6 +15,8 @@ METHOD_LABELS = {
     "co_pesi_estimated": "CO-PESI, estimated noise",
     "spd": "SPD",
     "admittance": "Admittance",
+    "constant_middle": "Range middle (constant)",
+    "constant_best": "Best constant for the truths",
 }
 
 

@@ -62,5 +62,5 @@ def test_notebook_03_on_one_environment_says_too_few_environments_to_decide(
         exec(compile(source, str(NOTEBOOK), "exec", dont_inherit=True), namespace)
     claims = (tmp_path / "claims.md").read_text(encoding="utf-8")
     rows = [line for line in claims.splitlines() if line.startswith("| ") and "---" not in line][1:]
-    assert len(rows) == 6, claims
+    assert len(rows) >= 6, claims  # the paper's six claims, then each learner against the constant guess
     assert all(row.endswith("| too few environments to decide |") for row in rows), claims

@@ -227,18 +227,28 @@ class PushingTask:
         return Rollout(push.features, bool(push.success))
 
     def demonstrate(
-        self, true_parameter: float, layout: Layout, perturb: Perturb = no_perturbation
+        self,
+        true_parameter: float,
+        layout: Layout,
+        perturb: Perturb = no_perturbation,
+        estimate: float | None = None,
     ) -> Demonstration:
-        """The expert P (the force-controlled push planned with the true mass) executing the layout's push,
-        as a learned pi^l is taught it (Algorithm 3, line 6), SPD tracking P's reference plus `perturb`'s."""
+        """The expert P (the force-controlled push planned with `estimate`, by default the true mass)
+        executing the layout's push of a cube of `true_parameter`, as a learned pi^l is taught it (Algorithm
+        3, line 6), SPD tracking P's reference plus `perturb`'s; labelled with the mass P was told."""
         start, goal = layout
+        told = (
+            true_parameter
+            if estimate is None
+            else check_parameter("estimate", estimate, self.parameter_range)
+        )
         self.reset(true_parameter, start, goal)
         first = initial_state(self.controller)
-        perturbation = perturb(self._longest_push(true_parameter))
-        features, _, tool_pos = self._expert_push(true_parameter, perturbation)
+        perturbation = perturb(self._longest_push(told))
+        features, _, tool_pos = self._expert_push(told, perturbation)
         period = self.control_period
         points = np.broadcast_to(self._goal_points(), (len(features), 2, 2))
-        return demonstration(first, features, tool_pos, points, true_parameter, period, perturbation)
+        return demonstration(first, features, tool_pos, points, told, period, perturbation)
 
     def _longest_push(self, mass_estimate: float) -> int:
         """Control periods a push planned with `mass_estimate` lasts at most, settling included (a learned

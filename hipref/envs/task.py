@@ -72,9 +72,12 @@ class Task(Protocol):
         """Values of the goal g a learned pi^l is conditioned on (`hipref.envs.low_level`)."""
         ...
 
-    def demonstrate(self, true_parameter: float, layout: Layout, perturb: Perturb) -> Demonstration:
-        """The analytic pi^l, told the true parameter, executing the layout: Algorithm 3's expert P, SPD
-        tracking its reference plus `perturb`'s."""
+    def demonstrate(
+        self, true_parameter: float, layout: Layout, perturb: Perturb, estimate: float | None = None
+    ) -> Demonstration:
+        """The analytic pi^l, told `estimate` (None: the true parameter), executing the layout in a world
+        at `true_parameter`: Algorithm 3's expert P, SPD tracking its reference plus `perturb`'s; labelled
+        with the parameter P was told."""
         ...
 
 

@@ -192,20 +192,30 @@ class WipingTask:
         return Rollout(stroke.features, bool(stroke.success))
 
     def demonstrate(
-        self, true_parameter: float, layout: Layout, perturb: Perturb = no_perturbation
+        self,
+        true_parameter: float,
+        layout: Layout,
+        perturb: Perturb = no_perturbation,
+        estimate: float | None = None,
     ) -> Demonstration:
-        """The expert P (admittance + IK + SPD, told the true height) executing the layout's stroke,
-        approach included, as a learned pi^l is taught it (Algorithm 3, line 6), SPD tracking P's
-        reference plus `perturb`'s."""
+        """The expert P (admittance + IK + SPD, told `estimate`, by default the true height) executing the
+        layout's stroke over a desk at `true_parameter`, approach included, as a learned pi^l is taught it
+        (Algorithm 3, line 6), SPD tracking P's reference plus `perturb`'s; labelled with the height P was
+        told, which reaches P only through its path (3 cm below the surface it was told)."""
         start, goal = layout
+        told = (
+            true_parameter
+            if estimate is None
+            else check_parameter("estimate", estimate, self.parameter_range)
+        )
         self.reset(true_parameter, (float(start[0]), float(start[1])))
         first = initial_state(self.controller)
-        targets = self._path(_check_goal(goal), true_parameter, None)
+        targets = self._path(_check_goal(goal), told, None)
         perturbation = perturb(len(targets))
         features, tool_pos = self.controller.track(targets, self.rotation, perturbation)
         period = self.control_period
         points = targets[:, None, :]
-        return demonstration(first, features, tool_pos, points, true_parameter, period, perturbation)
+        return demonstration(first, features, tool_pos, points, told, period, perturbation)
 
     def clip_frames(
         self, true_parameter: float, estimate: float, layout: Layout, frames: int = 40
@@ -329,23 +339,35 @@ class WipingTask:
         approach = self._approach_targets(estimate)
         return np.concatenate([approach, self._stroke_targets(goal, estimate, periods)])
 
-    def execute(self, goal_xy: np.ndarray, estimate: float, *, periods: int | None = None) -> Stroke:
+    def execute(
+        self, goal_xy: np.ndarray, estimate: float, *, periods: int | None = None, phi: float | None = None
+    ) -> Stroke:
         """From hover (after `reset`): the approach and the stroke to `goal_xy`, executed by the task's pi^l
-        given `estimate` (the analytic `stroke`, or the learned `low_level`'s)."""
+        given `estimate` (the analytic `stroke`, or the learned `low_level`'s). The estimate reaches a
+        learned pi^l twice, through the path it follows and as its parameter input; `phi` (None: the
+        estimate) sets the input alone, the path staying the estimate's. The analytic stack has no input
+        but its path, so `phi` does not change its stroke."""
         if self.low_level is None:
             return self.stroke(goal_xy, estimate, periods=periods)
-        return self._learned_stroke(self.low_level, goal_xy, estimate, periods)
+        phi = estimate if phi is None else check_parameter("phi", phi, self.parameter_range)
+        return self._learned_stroke(self.low_level, goal_xy, estimate, periods, phi)
 
     def _learned_stroke(
-        self, policy: JointReferencePolicy, goal_xy: np.ndarray, estimate: float, periods: int | None
+        self,
+        policy: JointReferencePolicy,
+        goal_xy: np.ndarray,
+        estimate: float,
+        periods: int | None,
+        phi: float,
     ) -> Stroke:
-        """The stroke from hover, approach included, executed by the learned `policy` given `estimate`,
-        each control period's goal the reference path's next point; only the stroke's periods are kept."""
+        """The stroke from hover, approach included, executed by the learned `policy` given `phi` along the
+        path of `estimate`, each control period's goal the path's next point; only the stroke's periods are
+        kept."""
         goal = _check_goal(goal_xy)
         approach = len(self._approach_targets(estimate))
         targets = self._path(goal, estimate, periods)
         period = self.control_period
-        features, tool_pos = execute_policy(self.controller, policy, targets[:, None, :], estimate, period)
+        features, tool_pos = execute_policy(self.controller, policy, targets[:, None, :], phi, period)
         self.reference[:] = targets[-1]
         self.in_contact_phase = True
         return self._outcome(features[approach:], tool_pos[approach:, :2], goal)

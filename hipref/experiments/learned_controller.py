@@ -1,15 +1,22 @@
 """The learned low-level controller (notebook 10, paper A.3 / Algorithm 3).
 
 1. Training: pi^l learnt by imitation of the analytic admittance-on-SPD stack in each domain
-   (`hipref.experiments.low_level.learned_policy`); its MSE over updates (`imitation_mse`).
+   (`hipref.experiments.low_level.learned_policy`), once per reading of its demonstrations
+   (`estimate_spreads`: the expert told the truth, the paper's reading, or an estimate around it, each row
+   labelled with the estimate); its MSE over updates (`imitation_mse`) and how far its joint reference
+   moves with its phi input on demonstration states (`phi_response`, rad per unit of phi).
 2. Controllers: the learned pi^l against its expert on the same episodes (true parameter, layout), with
    the true parameter and with estimates off it by the errors of notebook 05: success, and wiping's contact
    force over the stroke (`force_mean`, `force_std`) or pushing's final distance of the cube to its goal
    (`goal_distance`; its part along the push, past the goal positive, `goal_overshoot`, and its distance to
    the side of the push's line, `goal_sideways`); and with the true parameter, pi^l after fewer of
-   Algorithm 3's iterations (its `snapshots`): how its success grows with the demonstrations.
-3. SI on top: OSI and PESI (perfect preferences) on a grid of truths, executing either low level; each
-   low level's SI is pretrained (Algorithm 4) on its own rollouts.
+   Algorithm 3's iterations (its `snapshots`): how its success grows with the demonstrations. In wiping,
+   the estimate's two routes into a learned stroke apart (`route`): the parameter input wrong with the path
+   from the truth ('input'), or the path wrong with the true input ('path'). And the true parameter on
+   held-out episodes (`held_out`), seeds apart from those the study was designed on.
+3. SI on top: OSI and PESI (perfect preferences) on a grid of truths, executing the analytic low level or
+   the learned one of the last reading; each low level's SI is pretrained (Algorithm 4) on its own
+   rollouts.
 """
 
 from __future__ import annotations
@@ -21,16 +28,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from hipref.envs.low_level import REFERENCE
 from hipref.envs.pushing import PushingTask
 from hipref.envs.task import Task
 from hipref.envs.wiping import WipingTask
 from hipref.experiments.controllers import truth_and_estimate
 from hipref.experiments.domains import DOMAINS
-from hipref.experiments.low_level import LowLevel, learned_policy, make_task
+from hipref.experiments.low_level import LowLevel, demonstrations, learned_policy, make_task
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.experiments.si_run import SIRun, run_si
-from hipref.learners.imitation import ImitationConfig
+from hipref.learners.imitation import ImitationConfig, phi_response
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
@@ -41,6 +49,7 @@ SI_METHODS: tuple[str, ...] = ("osi", "pesi")
 """The SI methods run on top of each low level."""
 ROW_METRICS: tuple[str, ...] = (
     "imitation_mse",
+    "phi_response",
     "success_rate",
     "force_mean",
     "force_std",
@@ -52,6 +61,11 @@ ROW_METRICS: tuple[str, ...] = (
     "param_error_multislice",
 )
 """The metrics of the study's rows."""
+ROUTES: tuple[str, ...] = ("both", "input", "path")
+"""How an estimate reaches a learned stroke: as the input and through the path ('both', what SI's estimate
+does), as the input alone (the path from the truth), or through the path alone (the input the truth)."""
+RESPONSE_TRAJECTORIES = 10
+"""Demonstrations of the last reading on whose states each pi^l's `phi_response` is measured."""
 CURVE_POINTS = 50
 """Points of each training curve kept in the rows (the MSE averaged over as many equal runs of updates)."""
 
@@ -104,6 +118,19 @@ class LearnedControllerConfig(Protocol):
     """Episodes (truth, layout) per estimate error, each executed by both low levels."""
     comparison_seed: int = 0
     """Root seed of the comparison's episodes."""
+    estimate_spreads: tuple[float, ...] = (0.0, 0.35)
+    """Readings of Algorithm 3's demonstrations, one learned pi^l each (`ImitationConfig.estimate_spread`):
+    the half-width, as a fraction of the parameter range, of the estimate the expert is told around the
+    world's truth, each row labelled with the estimate. 0.0 is the paper's reading (told the truth); the
+    last is the pi^l SI runs on. Distinct, each in [0, 1]."""
+    blind_reference: bool = False
+    """Whether pi^l does without the last period's joint reference among the state's features
+    (`ImitationConfig.blind`): the next reference can be extrapolated from it without reading phi."""
+    held_out_episodes: int = 3
+    """Episodes with the true parameter on held-out seeds, executed by every low level."""
+    held_out_seed: int = 1
+    """Root seed of the held-out episodes: another grid than `comparison_seed`'s, on which nothing of the
+    study was tuned."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -111,7 +138,7 @@ class LearnedControllerConfig(Protocol):
             check_int("snapshots", snapshot, ImitationConfig.normalise_after, self.iterations - 1)
         if len(set(self.snapshots)) != len(self.snapshots):
             raise ValueError(f"snapshots must be distinct, got {list(self.snapshots)!r}")
-        self.imitation  # noqa: B018 - validates Algorithm 3's fields
+        self.imitation(0.0)  # validates Algorithm 3's fields
         for name, errors, domain in (
             ("height_errors", self.height_errors, "wiping"),
             ("mass_errors", self.mass_errors, "pushing"),
@@ -126,10 +153,19 @@ class LearnedControllerConfig(Protocol):
                 check_range(name, error, -bound, bound)
         check_int("episodes_per_error", self.episodes_per_error, 1)
         check_int("comparison_seed", self.comparison_seed, 0)
+        if not self.estimate_spreads or len(set(self.estimate_spreads)) != len(self.estimate_spreads):
+            raise ValueError(
+                f"estimate_spreads must be distinct and not empty, got {list(self.estimate_spreads)!r}"
+            )
+        for spread in self.estimate_spreads:
+            check_range("estimate_spreads", spread, 0.0, 1.0)
+        check_int("held_out_episodes", self.held_out_episodes, 1)
+        check_int("held_out_seed", self.held_out_seed, 0)
+        if self.held_out_seed == self.comparison_seed:
+            raise ValueError(f"held_out_seed must differ from comparison_seed, both {self.held_out_seed}")
 
-    @property
-    def imitation(self) -> ImitationConfig:
-        """Algorithm 3's config, the same in both domains."""
+    def imitation(self, estimate_spread: float) -> ImitationConfig:
+        """Algorithm 3's config for one reading of its demonstrations, the same in both domains."""
         return ImitationConfig(
             iterations=self.iterations,
             updates_per_iteration=self.updates_per_iteration,
@@ -139,11 +175,17 @@ class LearnedControllerConfig(Protocol):
             perturbation=self.perturbation,
             perturbation_time=self.perturbation_time,
             snapshots=tuple(self.snapshots),
+            estimate_spread=estimate_spread,
+            blind=tuple(range(REFERENCE.start, REFERENCE.stop)) if self.blind_reference else (),
         )
 
+    def learned(self) -> list[LowLevel]:
+        """The learned low level of each reading; the last is the one SI runs on."""
+        return [LowLevel("learned", self.imitation(spread)) for spread in self.estimate_spreads]
+
     def low_levels(self) -> tuple[LowLevel, LowLevel]:
-        """The analytic low level and the learned one."""
-        return LowLevel(), LowLevel("learned", self.imitation)
+        """The low levels SI runs on: the analytic one and the learned one of the last reading."""
+        return LowLevel(), self.learned()[-1]
 
 
 @dataclass(frozen=True)
@@ -151,7 +193,8 @@ class PreparationCell:
     """What one domain's runs load: Algorithm 3's pi^l, then Algorithm 4's SI on each low level."""
 
     domain: str
-    imitation: ImitationConfig
+    imitations: tuple[ImitationConfig, ...]
+    """Algorithm 3 per reading; the last's demonstrations are those `phi_response` is measured on."""
     data: tuple[PretrainData, ...]
     """Algorithm 4's data and pretraining per low level."""
 
@@ -168,36 +211,64 @@ class ComparisonCell:
     snapshot: int | None = None
     """For the learned low level: the policy after this many of Algorithm 3's iterations (None: the trained
     one)."""
+    route: str = "both"
+    """Wiping: how the estimate reaches the learned stroke (`ROUTES`)."""
+    held_out: bool = False
+    """Whether the seeds are the held-out grid's."""
 
 
 def run_preparation_cell(cell: PreparationCell) -> pd.DataFrame:
-    """Train (or load) the domain's pi^l and pretrain SI on each low level, all cached; rows: the training
-    curve, the MSE averaged over CURVE_POINTS equal runs of updates, each row at the run's last update."""
-    losses = learned_policy(cell.domain, cell.imitation).losses
+    """Train (or load) the domain's pi^l of each reading and pretrain SI on each low level, all cached;
+    rows per reading: the training curve, the MSE averaged over CURVE_POINTS equal runs of updates, each
+    row at the run's last update; and `phi_response` on each of the last reading's first
+    RESPONSE_TRAJECTORIES demonstrations (`episode`: its index), with a step of 1 % of the range."""
+    frames = []
+    low, high = DOMAINS[cell.domain].candidates.low, DOMAINS[cell.domain].candidates.high
+    shown = demonstrations(cell.domain, cell.imitations[-1])[:RESPONSE_TRAJECTORIES]
+    for imitation in cell.imitations:
+        trained = learned_policy(cell.domain, imitation)
+        losses = trained.losses
+        chunks = np.array_split(np.arange(len(losses)), min(CURVE_POINTS, len(losses)))
+        rows = [(int(chunk[-1]) + 1, "imitation_mse", float(losses[chunk].mean())) for chunk in chunks]
+        step = 0.01 * (high - low)
+        rows += [(i, "phi_response", phi_response(trained.policy, tau, step)) for i, tau in enumerate(shown)]
+        frames.append(
+            tidy_rows(
+                rows,
+                domain=cell.domain,
+                method="learned",
+                noise=0.0,
+                seed=imitation.seed,
+                estimate_spread=imitation.estimate_spread,
+            )
+        )
     for data in cell.data:
         pretrained_model(cell.domain, data)
-    chunks = np.array_split(np.arange(len(losses)), min(CURVE_POINTS, len(losses)))
-    rows = [(int(chunk[-1]) + 1, "imitation_mse", float(losses[chunk].mean())) for chunk in chunks]
-    return tidy_rows(rows, domain=cell.domain, method="learned", noise=0.0, seed=cell.imitation.seed)
+    return pd.concat(frames, ignore_index=True)
 
 
-def _episode_metrics(task: Task, seed: int, error: float) -> tuple[float, dict[str, float]]:
+def _episode_metrics(
+    task: Task, seed: int, error: float, route: str = "both"
+) -> tuple[float, dict[str, float]]:
     """One episode (truth and layout from `seed`) executed with the estimate off the truth by `error`
-    (`truth_and_estimate`): its truth, and its success with wiping's contact force over the stroke or
-    pushing's final distance of the cube to its goal, along the push (past the goal: positive) and
-    across it."""
+    (`truth_and_estimate`), in wiping by the `route` (`ROUTES`): its truth, and its success with wiping's
+    contact force over the stroke or pushing's final distance of the cube to its goal, along the push
+    (past the goal: positive) and across it."""
     rng = np.random.default_rng(seed)
     truth, estimate = truth_and_estimate(rng, error, *task.parameter_range)
     start, goal = task.sample_layout(rng)
     if isinstance(task, WipingTask):
         task.reset(truth, (float(start[0]), float(start[1])))
-        stroke = task.execute(goal, estimate)
+        path, phi = {"both": (estimate, estimate), "input": (truth, estimate), "path": (estimate, truth)}[
+            route
+        ]
+        stroke = task.execute(goal, path, phi=phi)
         return truth, {
             "success_rate": stroke.success,
             "force_mean": stroke.force.mean(),
             "force_std": stroke.force.std(),
         }
-    assert isinstance(task, PushingTask)
+    assert isinstance(task, PushingTask) and route == "both"
     task.reset(truth, start, goal)
     push = task.push(estimate)
     along = (goal - start) / np.linalg.norm(goal - start)
@@ -218,7 +289,7 @@ def run_comparison_cell(cell: ComparisonCell) -> pd.DataFrame:
     with one_thread():
         task = make_task(cell.domain, cell.low_level, snapshot=cell.snapshot)
         for seed in cell.seeds:
-            truth, metrics = _episode_metrics(task, seed, cell.error)
+            truth, metrics = _episode_metrics(task, seed, cell.error, cell.route)
             frames.append(
                 tidy_rows(
                     [(name, float(value)) for name, value in metrics.items()],
@@ -231,6 +302,9 @@ def run_comparison_cell(cell: ComparisonCell) -> pd.DataFrame:
                     estimate_error=cell.error,
                     ground_truth=round(truth, 6),
                     iterations=iterations,
+                    estimate_spread=cell.low_level.imitation.estimate_spread if learned else None,
+                    route=cell.route,
+                    held_out=cell.held_out,
                 )
             )
     return pd.concat(frames, ignore_index=True)
@@ -247,24 +321,31 @@ def pretrain_data(config: LearnedControllerConfig) -> tuple[PretrainData, ...]:
 
 
 def preparation_cells(config: LearnedControllerConfig) -> list[PreparationCell]:
-    return [PreparationCell(domain, config.imitation, pretrain_data(config)) for domain in DOMAINS]
+    imitations = tuple(low_level.imitation for low_level in config.learned())
+    return [PreparationCell(domain, imitations, pretrain_data(config)) for domain in DOMAINS]
 
 
 def comparison_cells(config: LearnedControllerConfig) -> list[ComparisonCell]:
-    """Every (domain, error) executed by both low levels on the same episodes; with the true parameter, also
-    by each snapshot of the learned one."""
-    analytic, learned = config.low_levels()
+    """Every (domain, error) executed by the analytic low level and each learned one on the same episodes;
+    in wiping, the last reading's routes apart at every error but 0; with the true parameter, also each
+    snapshot of the last reading's, and every low level on the held-out episodes."""
+    analytic, learned = LowLevel(), config.learned()
     cells = []
     for label, (domain, errors) in enumerate(
         (("wiping", config.height_errors), ("pushing", config.mass_errors))
     ):
         seeds = tuple(child_seeds([config.comparison_seed, label], config.episodes_per_error))
+        held_out = tuple(child_seeds([config.held_out_seed, label], config.held_out_episodes))
+        routes = ROUTES if domain == "wiping" else ROUTES[:1]
         for error in errors:
-            cells += [
-                ComparisonCell(domain, analytic, float(error), seeds),
-                ComparisonCell(domain, learned, float(error), seeds),
-            ]
-        cells += [ComparisonCell(domain, learned, 0.0, seeds, snapshot) for snapshot in config.snapshots]
+            cells.append(ComparisonCell(domain, analytic, float(error), seeds))
+            cells += [ComparisonCell(domain, low_level, float(error), seeds) for low_level in learned]
+            if error != 0.0:
+                cells += [
+                    ComparisonCell(domain, learned[-1], float(error), seeds, route=r) for r in routes[1:]
+                ]
+        cells += [ComparisonCell(domain, learned[-1], 0.0, seeds, snapshot) for snapshot in config.snapshots]
+        cells += [ComparisonCell(domain, ll, 0.0, held_out, held_out=True) for ll in [analytic, *learned]]
     return cells
 
 

@@ -17,6 +17,7 @@ from hipref.learners.imitation import (
     ImitationConfig,
     ImitationResult,
     collect_demonstrations,
+    estimate_around,
     learn_low_level_policy,
 )
 from hipref.numerics import one_thread
@@ -55,6 +56,7 @@ class DemonstrationSpec:
     domain: str
     perturbation: float
     perturbation_time: float
+    estimate_spread: float
     seed: int
 
 
@@ -62,20 +64,25 @@ def demonstrations(
     domain: str, imitation: ImitationConfig, cache_dir: CacheDir = None
 ) -> list[Demonstration]:
     """Algorithm 3's expert trajectories in `domain` (`collect_demonstrations`): each trajectory's goal a
-    random layout and its parameter uniform over the range, executed by the analytic stack told it; built
-    once and cached in `cache_dir` (None: the running sweep's, else the default directory), a shorter
-    study reading the start of a longer one's."""
-    spec = DemonstrationSpec(domain, imitation.perturbation, imitation.perturbation_time, imitation.seed)
+    random layout and its true parameter phi* uniform over the range, executed by the analytic stack told
+    an estimate phi around it (`estimate_around`, `ImitationConfig.estimate_spread`; phi* itself at 0) and
+    labelled with phi; built once and cached in `cache_dir` (None: the running sweep's, else the default
+    directory), a shorter study reading the start of a longer one's."""
+    spec = DemonstrationSpec(
+        domain, imitation.perturbation, imitation.perturbation_time, imitation.estimate_spread, imitation.seed
+    )
 
     def build(count: int) -> list[Demonstration]:
         expert = domain_spec(domain).make_task()
         low, high = expert.parameter_range
 
-        def sample_goal_and_phi(rng: np.random.Generator) -> tuple[Layout, float]:
-            return expert.sample_layout(rng), float(rng.uniform(low, high))
+        def sample_goal_and_phi(rng: np.random.Generator) -> tuple[tuple[Layout, float], float]:
+            layout, truth = expert.sample_layout(rng), float(rng.uniform(low, high))
+            return (layout, truth), estimate_around(rng, truth, low, high, imitation.estimate_spread)
 
-        def collect(layout: Layout, phi: float, perturb: Perturb) -> Demonstration:
-            return expert.demonstrate(phi, layout, perturb)
+        def collect(world: tuple[Layout, float], phi: float, perturb: Perturb) -> Demonstration:
+            layout, truth = world
+            return expert.demonstrate(truth, layout, perturb, estimate=phi)
 
         return collect_demonstrations(sample_goal_and_phi, collect, expert.control_period, imitation, count)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -37,7 +37,10 @@ class PretrainData:
     """Adam step size of Algorithm 4 (Table 2: 1e-3)."""
     loss: str = "brier"
     """What Algorithm 4's mean squared loss is taken over: 'brier' (SI's distribution against the target
-    distribution), 'expectation' (its mean only) or 'brier_expectation' (`hipref.learners.sysid.pretrain`)."""
+    distribution), 'expectation' (its mean only), 'brier_expectation', or 'nll' (the negative
+    log-likelihood instead of a squared loss; `hipref.learners.sysid.pretrain`)."""
+    hidden_sizes: tuple[int, ...] = (256, 128, 64, 32)
+    """SI's hidden layers (Table 2: [256, 128, 64, 32], tanh)."""
     seed: int = 0
     """Seed of the collection and of the pretraining: one pretrained model per domain, shared by all runs."""
     low_level: LowLevel = field(default_factory=LowLevel)
@@ -51,6 +54,10 @@ class PretrainData:
         check_int("pretrain_steps", self.pretrain_steps, 0)
         check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
         check_int("seed", self.seed, 0)
+        if not self.hidden_sizes or not all(isinstance(h, int) and h >= 1 for h in self.hidden_sizes):
+            raise ValueError(
+                f"hidden_sizes must be a non-empty tuple of positive integers, got {self.hidden_sizes!r}"
+            )
 
     @property
     def collection(self) -> tuple[Any, ...]:
@@ -64,38 +71,96 @@ class PretrainData:
         return {**dataclasses.asdict(self), "low_level": self.low_level.key}
 
 
-def collect_dataset(
-    domain: str, data: PretrainData, cache_dir: CacheDir = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Algorithm 4's D: every h-period slice of `n_trajectories` domain-randomised trajectories.
+class Trajectories(NamedTuple):
+    """Algorithm 4's domain-randomised trajectories before they are cut into slices."""
+
+    features: np.ndarray
+    """(n, trajectory_steps, features per period): what SI sees of each control period."""
+    parameters: np.ndarray
+    """(n,): each trajectory's true parameter phi."""
+    phase: np.ndarray
+    """(n, trajectory_steps): how far into its rollout's clip each period is, in [0, 1)."""
+
+
+def collect_trajectories(
+    domain: str, n_trajectories: int, data: PretrainData, cache_dir: CacheDir = None
+) -> Trajectories:
+    """`n_trajectories` domain-randomised trajectories of `data.trajectory_steps` periods (Algorithm 4's D
+    before slicing, with `data.seed`).
 
     Each trajectory has its parameter drawn uniformly from the range (A.7) and is made of rollouts of pi^l,
     each with its own uniformly random estimate, chained until `trajectory_steps` periods are collected:
     the estimate is what pi^l acts on, so a spread of estimates shows SI how each parameter looks through
-    both good and bad control. A learned pi^l is loaded from (or trained into) `cache_dir`. Returns (features
-    (n, h * features per period), parameters (n,)).
+    both good and bad control. The draws are sequential, so the first n trajectories of a larger collection
+    are those of a collection of n. Where the layout sets a rollout's length (wiping) only the periods kept
+    are simulated, bit for bit the whole rollout's. A learned pi^l is loaded from (or trained into)
+    `cache_dir`.
     """
     spec = domain_spec(domain)
     task = make_task(domain, data.low_level, cache_dir)
     rng = np.random.default_rng(np.random.SeedSequence([data.seed, 4]))
-    features, parameters = [], []
-    for _ in range(data.n_trajectories):
+    features, parameters, phases = [], [], []
+    for _ in range(n_trajectories):
         phi = float(rng.uniform(spec.candidates.low, spec.candidates.high))
         periods: list[np.ndarray] = []
-        while sum(len(p) for p in periods) < data.trajectory_steps:
-            periods.append(task.rollout(phi, random_estimate(task, rng), task.sample_layout(rng)).features)
-        trajectory = np.concatenate(periods)[: data.trajectory_steps]
-        windows = np.lib.stride_tricks.sliding_window_view(trajectory, data.history, axis=0)
-        # sliding_window_view puts the window last: (n, 21, h) -> (n, h, 21), flattened in time order.
-        features.append(windows.transpose(0, 2, 1).reshape(len(windows), -1))
-        parameters.append(np.full(len(windows), phi))
-    return np.concatenate(features), np.concatenate(parameters)
+        phase: list[np.ndarray] = []
+        while (collected := sum(len(p) for p in periods)) < data.trajectory_steps:
+            estimate, layout = random_estimate(task, rng), task.sample_layout(rng)
+            planned = task.planned_periods(layout)
+            kept = None if planned is None else min(planned, data.trajectory_steps - collected)
+            periods.append(task.rollout(phi, estimate, layout, periods=kept).features)
+            length = len(periods[-1]) if planned is None else planned
+            phase.append(np.arange(len(periods[-1])) / length)
+        features.append(np.concatenate(periods)[: data.trajectory_steps])
+        phases.append(np.concatenate(phase)[: data.trajectory_steps])
+        parameters.append(phi)
+    return Trajectories(np.stack(features), np.asarray(parameters), np.stack(phases))
+
+
+def cut_slices(
+    trajectories: Trajectories, history: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every h-period slice of every trajectory (Algorithm 4's D): (features (m, h * features per period) in
+    time order, parameters (m,), trajectory index (m,), phase of the slice's first period (m,))."""
+    n, steps, width = trajectories.features.shape
+    check_int("history", history, 1, steps)
+    # sliding_window_view puts the window last: (n, m, 21, h) -> (n, m, h, 21), flattened in time order.
+    windows = np.lib.stride_tricks.sliding_window_view(trajectories.features, history, axis=1)
+    per_trajectory = windows.shape[1]
+    features = windows.transpose(0, 1, 3, 2).reshape(n * per_trajectory, history * width)
+    index = np.repeat(np.arange(n), per_trajectory)
+    phase = trajectories.phase[:, :per_trajectory].reshape(-1)
+    return features, trajectories.parameters[index], index, phase
+
+
+def collect_dataset(
+    domain: str, data: PretrainData, cache_dir: CacheDir = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Algorithm 4's D: every h-period slice of `data.n_trajectories` trajectories (`collect_trajectories`).
+    Returns (features (n, h * features per period), parameters (n,))."""
+    features, parameters, _, _ = cut_slices(
+        collect_trajectories(domain, data.n_trajectories, data, cache_dir), data.history
+    )
+    return features, parameters
+
+
+def fit_si(domain: str, features: np.ndarray, parameters: np.ndarray, data: PretrainData) -> SIModel:
+    """A fresh SI pretrained by Algorithm 4 on (features, parameters) as `data` says (single-threaded)."""
+    with one_thread():
+        model = SIModel(features.shape[1], domain_spec(domain).candidates, data.hidden_sizes, seed=data.seed)
+        pretrain(
+            model,
+            features,
+            parameters,
+            PretrainConfig(data.learning_rate, n_steps=data.pretrain_steps, loss=data.loss),
+            data.seed,
+        )
+    return model
 
 
 def pretrained_model(domain: str, data: PretrainData, cache_dir: CacheDir = None) -> SIModel:
     """The OSI model: SI pretrained by Algorithm 4 on `collect_dataset`, built once per config and cached in
     `cache_dir` (None: the running sweep's, else the default directory), with its dataset."""
-    spec = domain_spec(domain)
 
     def build() -> SIModel:
         features, parameters = cached_artefact(
@@ -108,16 +173,7 @@ def pretrained_model(domain: str, data: PretrainData, cache_dir: CacheDir = None
                 lambda d: d[0].ndim == 2 and d[0].shape[1] % data.history == 0 and d[1].shape == (len(d[0]),),
             ),
         )
-        with one_thread():
-            model = SIModel(features.shape[1], spec.candidates, seed=data.seed)
-            pretrain(
-                model,
-                features,
-                parameters,
-                PretrainConfig(data.learning_rate, n_steps=data.pretrain_steps, loss=data.loss),
-                data.seed,
-            )
-        return model
+        return fit_si(domain, features, parameters, data)
 
     return cached_artefact(f"si_osi_{domain}", (domain, data.key), build, cache_dir=cache_dir, expect=SIModel)
 

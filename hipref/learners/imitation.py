@@ -14,6 +14,13 @@ al., 2017), each demonstration is executed with P's reference perturbed by a smo
 Ornstein-Uhlenbeck process, `perturbation`), while the labels stay P's own references: R then holds the
 corrections P makes from states off its path. `perturbation=0` is Algorithm 3 read literally.
 
+Teaching phi. Line 4 sets the simulator with phi and P is told it, so in R the phi column always equals the
+world's truth phi*: the network can read what it needs from the state (the wrist force the true parameter
+produces) and never sees how P's behaviour changes with phi, and then ignores its phi input (issue 29).
+`estimate_spread` > 0 sets the simulator with a truth phi* and tells P an estimate phi drawn around it
+(`estimate_around`), each row labelled with phi: pi^l imitates "P acting on phi" in a world whose truth is
+phi*, what an SI estimate asks of it. `estimate_spread = 0` is the paper's reading, phi = phi*.
+
 What the network predicts is q_bar - q, the offset of the reference from the joints now (the first six
 values of s), each input and output standardised by its mean and spread over R's first trajectories
 (`ImitationConfig.normalise_after`): P's own step, q + J^+ e, is an offset of the same kind, so the
@@ -70,6 +77,14 @@ class ImitationConfig:
     """Stationary spread in rad of the perturbation of each joint's reference in demonstrations (0: none)."""
     perturbation_time: float = 0.2
     """Correlation time in s of the perturbation: slow enough that the arm follows it off P's path."""
+    estimate_spread: float = 0.0
+    """Half-width, as a fraction of the parameter range, of the estimate phi P is told around the truth phi*
+    the simulator is set to (`estimate_around`); each row is labelled with phi. 0: phi = phi*, Algorithm 3
+    read as the paper writes it; 1: phi independent of phi*, uniform over the range."""
+    blind: tuple[int, ...] = ()
+    """Columns of the state pi^l does not see (0 in its inputs, in R and when it acts), each past the joint
+    positions: e.g. the last period's joint reference (`hipref.envs.low_level.REFERENCE`), from which the
+    next reference can be extrapolated without reading phi. (): the whole state."""
     normalise_after: int = 10
     """Trajectories in R from whose rows the inputs' and outputs' standardisation is measured; updates
     begin once it is (earlier iterations only collect)."""
@@ -91,6 +106,11 @@ class ImitationConfig:
         check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
         check_range("perturbation", self.perturbation, 0.0, 0.5)
         check_range("perturbation_time", self.perturbation_time, 1e-3, 10.0)
+        check_range("estimate_spread", self.estimate_spread, 0.0, 1.0)
+        for column in self.blind:
+            check_int("blind", column, JOINTS)
+        if len(set(self.blind)) != len(self.blind):
+            raise ValueError(f"blind must hold distinct columns, got {list(self.blind)!r}")
         check_int("normalise_after", self.normalise_after, 1, self.iterations)
         check_int("seed", self.seed, 0)
         for iteration in self.snapshots:
@@ -112,11 +132,21 @@ def perturbation(
     return offsets
 
 
+def estimate_around(rng: np.random.Generator, truth: float, low: float, high: float, spread: float) -> float:
+    """The estimate phi P is told in a world whose truth is `truth`: uniform over the range [low, high]
+    within `spread` x (high - low) of the truth (spread 1: uniform over the range, whatever the truth); with
+    spread 0, the truth itself and nothing drawn."""
+    if spread == 0.0:
+        return float(truth)
+    width = spread * (high - low)
+    return float(rng.uniform(max(low, truth - width), min(high, truth + width)))
+
+
 class ReplayBuffer:
     """R: every (state, goal, phi, q_bar) row of the trajectories pushed so far."""
 
-    def __init__(self, state_size: int, goal_size: int) -> None:
-        self.state_size, self.goal_size = state_size, goal_size
+    def __init__(self, state_size: int, goal_size: int, blind: tuple[int, ...] = ()) -> None:
+        self.state_size, self.goal_size, self.blind = state_size, goal_size, blind
         self._inputs: list[np.ndarray] = []
         self._targets: list[np.ndarray] = []
         self._rows = 0
@@ -128,7 +158,7 @@ class ReplayBuffer:
 
     def push(self, tau: Trajectory) -> None:
         """Line 8: push tau's rows into R; a tau of other shapes than R's is refused."""
-        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size)
+        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size, self.blind)
         references = np.asarray(tau.references, dtype=float)
         if references.shape != (len(inputs), JOINTS):
             raise ValueError(f"references must be ({len(inputs)}, {JOINTS}), got shape {references.shape}")
@@ -152,10 +182,16 @@ class ReplayBuffer:
 
 
 def policy_inputs(
-    states: np.ndarray, goals: np.ndarray, phi: float, state_size: int, goal_size: int
+    states: np.ndarray,
+    goals: np.ndarray,
+    phi: float,
+    state_size: int,
+    goal_size: int,
+    blind: tuple[int, ...] = (),
 ) -> np.ndarray:
-    """The network's input rows (state, goal, phi); states and goals of other shapes than pi^l's, or a phi
-    that is not one finite number, are refused before anything is computed."""
+    """The network's input rows (state, goal, phi), the state's `blind` columns 0; states and goals of
+    other shapes than pi^l's, or a phi that is not one finite number, are refused before anything is
+    computed."""
     states, goals = np.asarray(states, dtype=float), np.asarray(goals, dtype=float)
     if states.ndim != 2 or states.shape[1] != state_size:
         raise ValueError(f"states must be (periods, {state_size}), got shape {states.shape}")
@@ -163,7 +199,9 @@ def policy_inputs(
         raise ValueError(f"goals must be ({len(states)}, {goal_size}), got shape {goals.shape}")
     if np.ndim(phi) != 0 or not np.isfinite(phi):
         raise ValueError(f"phi must be one finite number, got {phi!r}")
-    return np.concatenate([states, goals, np.full((len(states), 1), float(phi))], axis=1)
+    inputs = np.concatenate([states, goals, np.full((len(states), 1), float(phi))], axis=1)
+    inputs[:, list(blind)] = 0.0
+    return inputs
 
 
 class Standardisation(NamedTuple):
@@ -191,8 +229,15 @@ class LearnedLowLevelPolicy:
     trained network's weights in float64 numpy arrays, so that a control period costs a few small
     matrix products and no torch call."""
 
-    def __init__(self, network: nn.Sequential, scaling: Standardisation, state_size: int, goal_size: int):
-        self.state_size, self.goal_size = state_size, goal_size
+    def __init__(
+        self,
+        network: nn.Sequential,
+        scaling: Standardisation,
+        state_size: int,
+        goal_size: int,
+        blind: tuple[int, ...] = (),
+    ):
+        self.state_size, self.goal_size, self.blind = state_size, goal_size, blind
         self.scaling = scaling
         linears = [m for m in network if isinstance(m, nn.Linear)]
         self.weights = [m.weight.detach().numpy().astype(np.float64) for m in linears]
@@ -210,13 +255,30 @@ class LearnedLowLevelPolicy:
     def __call__(self, state: np.ndarray, goal: np.ndarray, phi: float) -> np.ndarray:
         """q_bar for one state s (state size), goal g (goal size) and phi."""
         state, goal = np.asarray(state, dtype=float), np.asarray(goal, dtype=float)
-        inputs = policy_inputs(state[None], goal[None], phi, self.state_size, self.goal_size)
+        inputs = policy_inputs(state[None], goal[None], phi, self.state_size, self.goal_size, self.blind)
         return inputs[0, :JOINTS] + self.offsets(inputs)[0]
 
     def references(self, tau: Trajectory) -> np.ndarray:
         """q_bar for each period of a trajectory's states (what it would give P's states)."""
-        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size)
+        inputs = policy_inputs(tau.states, tau.goals, tau.phi, self.state_size, self.goal_size, self.blind)
         return inputs[:, :JOINTS] + self.offsets(inputs)
+
+
+def phi_response(
+    policy: Callable[[np.ndarray, np.ndarray, float], np.ndarray], tau: Trajectory, step: float
+) -> float:
+    """How much pi^l's joint reference moves with its phi input on tau's states and goals: the root mean
+    square over periods and joints of (pi^l(s, g, phi + step) - pi^l(s, g, phi)) / step, in rad per unit
+    of phi. 0 for a pi^l that ignores phi."""
+    if not np.isfinite(step) or step == 0.0:
+        raise ValueError(f"step must be a finite non-zero number, got {step!r}")
+    moved = np.array(
+        [
+            policy(state, goal, tau.phi + step) - policy(state, goal, tau.phi)
+            for state, goal in zip(tau.states, tau.goals, strict=True)
+        ]
+    )
+    return float(np.sqrt(np.mean((moved / step) ** 2)))
 
 
 class ImitationResult(NamedTuple):
@@ -231,8 +293,8 @@ class ImitationResult(NamedTuple):
 
 TrajectoryT = TypeVar("TrajectoryT", bound=Trajectory)
 Collect = Callable[[Any, float, Callable[[int], np.ndarray]], TrajectoryT]
-"""`collect(goal, phi, perturb)`: set the simulator to phi and return P's trajectory under the goal, SPD
-tracking P's reference plus `perturb(periods)` (periods, 6)."""
+"""`collect(goal, phi, perturb)`: return the trajectory of P told phi under the goal (which may carry the
+truth the simulator is set to, else phi), SPD tracking P's reference plus `perturb(periods)` (periods, 6)."""
 
 
 def algorithm_streams(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
@@ -254,7 +316,8 @@ def collect_demonstrations(
     P does not depend on pi^l, so the trajectory of iteration i is the same whether the updates run between
     the collections or after them: collected from a stream of their own, the demonstrations are an artefact
     shared by every network trained on them, and iteration i's is the same in a short run and a long one.
-    `sample_goal_and_phi` draws a goal and a parameter; `collect` executes P, its reference perturbed as
+    `sample_goal_and_phi` draws a goal (with the truth phi* where it is not phi) and the parameter phi P is
+    told; `collect` executes P, its reference perturbed as
     `config` says (`control_period` s per row of the perturbation)."""
     rng, _ = algorithm_streams(config.seed)
     demonstrations: list[TrajectoryT] = []
@@ -281,7 +344,7 @@ def learn_low_level_policy(
             f"Algorithm 3 runs {config.iterations} iterations, got {len(demonstrations)} trajectories"
         )
     _, rng = algorithm_streams(config.seed)
-    buffer = ReplayBuffer(state_size, goal_size)
+    buffer = ReplayBuffer(state_size, goal_size, config.blind)
     network: nn.Sequential | None = None
     optimiser: torch.optim.Optimizer | None = None
     scaling: Standardisation | None = None
@@ -309,7 +372,9 @@ def learn_low_level_policy(
             optimiser.step()
             losses.append(float(loss.detach()))
         if buffer.trajectories in config.snapshots:
-            snapshots[buffer.trajectories] = LearnedLowLevelPolicy(network, scaling, state_size, goal_size)
+            snapshots[buffer.trajectories] = LearnedLowLevelPolicy(
+                network, scaling, state_size, goal_size, config.blind
+            )
     assert network is not None and scaling is not None
-    policy = LearnedLowLevelPolicy(network, scaling, state_size, goal_size)
+    policy = LearnedLowLevelPolicy(network, scaling, state_size, goal_size, config.blind)
     return ImitationResult(policy, np.array(losses), snapshots)

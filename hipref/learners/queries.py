@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from scipy.special import entr
@@ -63,6 +64,9 @@ class PairTable:
         """Which of the four answers (first, second, skip, equal) the model can give."""
         self.probs = np.ascontiguousarray(probs[..., kept].transpose(0, 2, 1))  # (P, outcomes, C)
         self.entropy = entr(probs[..., kept]).sum(axis=-1)  # (P, C)
+        exchanged = np.array([1, 0, 2, 3])[self.outcomes]
+        self.swapped = np.ascontiguousarray(self.probs[:, np.searchsorted(self.outcomes, exchanged)])
+        """`probs` with the answers 'first' and 'second' exchanged: what a flip turns them into."""
 
 
 @functools.lru_cache(maxsize=256)
@@ -92,40 +96,55 @@ def pair_scores(
     asked = _worth_asking(candidates, cells, beliefs, pairs)
     if asked is not None:
         pairs = pairs[asked]
-    tables = [pair_table(candidates, cells, model) for model, _ in beliefs]
     if len(beliefs) == 1:
-        (table,), weights = tables, beliefs[0][1]
+        model, weights = beliefs[0]
+        table = pair_table(candidates, cells, model)
         probs, entropy = (
             (table.probs, table.entropy) if asked is None else (table.probs[asked], table.entropy[asked])
         )
         mixture = probs @ weights
         conditional = entropy @ weights
     else:
-        mixture, conditional = _mixed(tables, [weights for _, weights in beliefs], asked)
+        mixture, conditional = _mixed(candidates, cells, beliefs, asked)
     if rule == "volume_removal":
         return pairs, 1.0 - (mixture**2).sum(axis=1)
     return pairs, entr(mixture).sum(axis=1) - conditional
 
 
 def _mixed(
-    tables: list[PairTable], weights: list[np.ndarray], asked: np.ndarray | None
+    candidates: CandidateSet,
+    cells: np.ndarray,
+    beliefs: Sequence[tuple[AnswerModel, np.ndarray]],
+    asked: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """P(y) of each pair (over the answers some model gives) and sum_c w_c H(P(y | c)) under the mixture of
-    several models' beliefs."""
-    outcomes = np.unique(np.concatenate([table.outcomes for table in tables]))
-    cell_weights = np.sum(weights, axis=0)
+    """P(y) of each pair (over the answers some model gives) and sum_c w_c H(P(y | c)) under a belief
+    over several models. A pair's answer under a rule with flips e is (1 - e) R + e R', R the rule's
+    table and R' it with the two candidates' answers swapped, so the models sharing a rule cost two
+    products whatever their flip rates: sum_m w_mc (1 - e_m) and sum_m w_mc e_m weigh R and R'."""
+    kept: dict[AnswerModel, np.ndarray] = {}
+    flipped: dict[AnswerModel, np.ndarray] = {}
+    for model, weights in beliefs:
+        rule = replace(model, flip=0.0)
+        kept[rule] = kept.get(rule, np.zeros(cells.size)) + (1.0 - model.flip) * weights
+        flipped[rule] = flipped.get(rule, np.zeros(cells.size)) + model.flip * weights
+    tables = {rule: pair_table(candidates, cells, rule) for rule in kept}
+    outcomes = np.unique(np.concatenate([table.outcomes for table in tables.values()]))
+    cell_weights = np.sum([weights for _, weights in beliefs], axis=0)
     held = np.flatnonzero(cell_weights > SUPPORT * cell_weights.max())
-    size = tables[0].pairs.shape[0] if asked is None else asked.size
+    size = candidates.size * (candidates.size - 1) // 2 if asked is None else asked.size
     joint = np.zeros((size, outcomes.size, held.size))
     term = np.empty_like(joint)
-    for table, weight in zip(tables, weights, strict=True):
-        probs = table.probs if asked is None else table.probs[asked]
-        if held.size < weight.size:
-            probs = probs[:, :, held]
-        if table.outcomes.size == outcomes.size:
-            joint += np.multiply(probs, weight[held], out=term)
-        else:
-            joint[:, np.searchsorted(outcomes, table.outcomes), :] += probs * weight[held]
+    for rule, table in tables.items():
+        for probs, weights in ((table.probs, kept[rule]), (table.swapped, flipped[rule])):
+            if not np.any(weights):
+                continue
+            probs = probs if asked is None else probs[asked]
+            if held.size < cells.size:
+                probs = probs[:, :, held]
+            if table.outcomes.size == outcomes.size:  # the same answers: added in place
+                joint += np.multiply(probs, weights[held], out=term)
+            else:
+                joint[:, np.searchsorted(outcomes, table.outcomes), :] += probs * weights[held]
     held_weights = cell_weights[held]
     conditional = entr(joint).sum(axis=(1, 2)) + held_weights @ np.log(held_weights)
     return joint.sum(axis=2), conditional
