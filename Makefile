@@ -45,7 +45,27 @@ else
 JOBS := 2
 endif
 
-.PHONY: install reproduce notebooks test lint typecheck pytest nbval lab bench readme readme-check
+.PHONY: help install reproduce notebooks test lint typecheck pytest nbval lab bench readme readme-check
+
+# A bare `make` lists the targets; every other target installs first what it needs.
+.DEFAULT_GOAL := help
+
+# Times measured on the 2-core machine of the README's "Time" section.
+help:
+	@echo 'make reproduce PROFILE=quick  every notebook at the quick profile into results/quick/ (about 3 min)'
+	@echo 'make reproduce                every notebook at the paper scale: rewrites the committed results/ (about 25 min)'
+	@echo 'make notebooks                re-executes notebooks/ in place at the quick profile (about 3 min)'
+	@echo 'make test                     lint, typecheck, pytest and nbval; writes no tracked file (about 8 min)'
+	@echo 'make lint                     ruff on the package, tests and notebooks (seconds)'
+	@echo 'make typecheck                mypy on hipref/ (under a minute)'
+	@echo 'make pytest                   the tests of tests/ on every core (about 2 min)'
+	@echo 'make nbval                    checks the outputs of the committed notebooks (about 4 min)'
+	@echo 'make lab                      JupyterLab on notebooks/'
+	@echo 'make bench                    the benchmarks of hipref/bench/, printing their figures'
+	@echo 'make readme                   the findings of README.md rewritten from the committed results/ (seconds)'
+	@echo 'make readme-check             checks the findings of README.md against the committed results/ (seconds)'
+	@echo 'make install                  .venv from environment.txt (about 7 min, 2.1 GB with the CPU build of torch)'
+	@echo 'Any target but help installs first. NOTEBOOKS=notebooks/NN_x.ipynb limits reproduce, notebooks and nbval.'
 
 install: $(VENV)/.installed
 

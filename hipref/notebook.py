@@ -6,6 +6,9 @@ injects overrides after it as plain assignments. The first code cell then calls 
 
 - refuses any user-level name in the notebook's namespace that the parameters cell does not declare, so a
   misspelt key in a `-f` file or a `-p` fails the run instead of being ignored in favour of the default;
+  and any name papermill's injected cell assigns that the parameters cell does not declare, also an
+  upper-case or private one (`-p EPISODES 5`, `-p _episodes 5`), whoever ran papermill (`make`, its
+  command line, `papermill.execute_notebook`): the kernel's input history holds the injected cell;
 - converts each parameter to the type of the config field it sets (the config dataclass is the single
   source of truth for names and types; a notebook-only parameter sets a field of another config through a
   prefix, as notebook 06's `copesi_seeds` sets `R3Config.seeds`), refusing with a ValueError that names
@@ -19,6 +22,8 @@ type `tuple[X, ...]` is a `list[X]` parameter, since papermill and YAML give lis
 
 from __future__ import annotations
 
+import ast
+import contextlib
 import dataclasses
 import difflib
 import types
@@ -43,6 +48,24 @@ _SEEN = "_hipref_seen_names"
 interactive session define are not parameters and are ignored when the first code cell is run again."""
 
 _IPYTHON = frozenset({"In", "Out", "exit", "quit", "get_ipython", "open"})
+
+_INJECTED = "# Parameters\n"
+"""How papermill's injected-parameters cell begins (`papermill.translators.Translator.codify`)."""
+
+
+def injected_names(namespace: Mapping[str, Any]) -> list[str]:
+    """The names papermill's injected-parameters cell assigned, read from IPython's input history `In`
+    (every cell the kernel ran, in order); none outside a kernel or without papermill."""
+    history = namespace.get("In")
+    names: list[str] = []
+    for source in history if isinstance(history, list) else []:
+        if not (isinstance(source, str) and source.startswith(_INJECTED)):
+            continue
+        with contextlib.suppress(SyntaxError):
+            for node in ast.parse(source).body:
+                if isinstance(node, ast.Assign):
+                    names += [t.id for t in node.targets if isinstance(t, ast.Name) and t.id not in names]
+    return names
 
 
 def user_names(namespace: Mapping[str, Any]) -> dict[str, Any]:
@@ -173,10 +196,11 @@ def check_parameters(namespace: MutableMapping[str, Any], *sources: Source) -> d
     unknown = [
         name for name in user_names(namespace) if name not in annotations and (seen is None or name in seen)
     ]
+    unknown += [name for name in injected_names(namespace) if name not in annotations and name not in unknown]
     if unknown:
         named = []
         for name in unknown:
-            close = difflib.get_close_matches(name, parameters, n=1)
+            close = difflib.get_close_matches(name.lower().lstrip("_"), parameters, n=1)
             named.append(f"{name} (did you mean {close[0]}?)" if close else name)
         raise ValueError(
             f"unknown parameter(s) {', '.join(named)}: this notebook's parameters are "

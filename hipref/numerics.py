@@ -38,16 +38,19 @@ domain and cached, takes about 10 s instead of 6 s; a learning run, dominated by
 Both settings are read when torch first computes, so they are set when this module is imported, which
 `import hipref` does before anything else; sweep workers are spawned processes that import `hipref` first,
 and inherit them. A value already in the environment is kept, so a person can still choose another setting
-on purpose.
+on purpose; every sweep then warns once per process that its rows may differ from the committed ones, as it
+does when an installed package's version differs from environment.txt (`warn_overrides`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import sys
 import warnings
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -75,6 +78,45 @@ def pin_cpu_dispatch() -> None:
             "another machine. Import hipref before using torch.",
             RuntimeWarning,
             stacklevel=2,
+        )
+
+
+def overrides(environ: Mapping[str, str], pins: Path | None) -> list[str]:
+    """What in this process differs from what the committed rows were computed with: a `PINNED` setting
+    the environment chose otherwise, and an installed version of a package that differs from its pin in
+    `pins` (the checkout's environment.txt; None outside a checkout)."""
+    from importlib import metadata
+
+    found = [
+        f"{name}={environ[name]} (pinned: {value})"
+        for name, value in PINNED.items()
+        if environ.get(name, value).lower() != value.lower()
+    ]
+    lines = pins.read_text().splitlines() if pins is not None and pins.is_file() else []
+    for name, _, version in (line.partition("==") for line in lines if "==" in line and line[0] != "#"):
+        try:
+            installed = metadata.version(name.strip())
+        except metadata.PackageNotFoundError:
+            continue
+        # A local build label (torch's "+cpu") names the wheel, not another version.
+        if installed.split("+")[0] != version.strip():
+            found.append(f"{name.strip()} {installed} (pinned: {version.strip()})")
+    return found
+
+
+@functools.cache
+def warn_overrides(pins: Path | None) -> None:
+    """Warn, once per process, that rows computed here may differ from the committed ones, naming what
+    differs from the pins (`overrides`; `pins` the checkout's environment.txt, None outside a checkout).
+    Every sweep calls this before it computes."""
+    found = overrides(os.environ, pins)
+    if found:
+        warnings.warn(
+            f"this environment overrides the study's pins: {'; '.join(found)}. Rows computed here may "
+            "differ from the committed ones (results/); install with `make install` and leave "
+            f"{' and '.join(PINNED)} unset to compute the same.",
+            RuntimeWarning,
+            stacklevel=3,
         )
 
 

@@ -2,15 +2,42 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import numbers
+import typing
 from collections.abc import Collection, Iterable, Sequence
 from typing import Any
+
+
+def is_number(value: object) -> bool:
+    """A real number: not a string that would convert to one, nor a bool (True is no noise level)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def check_grids(config: Any) -> None:
+    """Raise ValueError naming the field unless every `tuple[X, ...]` field of the dataclass `config` holds
+    a tuple or list (not a scalar or a string, whose characters would be taken for its items) of distinct
+    items: a repeated value would run the same cells twice and fail only when their rows are combined."""
+    hints = typing.get_type_hints(type(config))
+    for field in dataclasses.fields(config):
+        hint = hints[field.name]
+        if typing.get_origin(hint) is not tuple or typing.get_args(hint)[1:] != (Ellipsis,):
+            continue
+        value = getattr(config, field.name)
+        if not isinstance(value, tuple | list):
+            raise ValueError(f"{field.name} must be a list or tuple of values, got {value!r}")
+        repeated = sorted({repr(v) for v in value if list(value).count(v) > 1})
+        if repeated:
+            raise ValueError(
+                f"{field.name} must not repeat a value, got {value!r} ({', '.join(repeated)} twice)"
+            )
 
 
 def check_range(name: str, value: float, low: float, high: float) -> None:
     """Raise ValueError naming the parameter, its range and the value unless low <= value <= high."""
     try:
-        ok = math.isfinite(float(value)) and low <= float(value) <= high
+        ok = is_number(value) and math.isfinite(float(value)) and low <= float(value) <= high
     except (TypeError, ValueError):
         ok = False
     if not ok:
@@ -35,7 +62,7 @@ def check_choice(name: str, value: Any, allowed: Collection[Any]) -> None:
 def check_vector(name: str, value: Sequence[float], length: int, *, positive: bool = False) -> None:
     """Raise ValueError unless value is a sequence of `length` finite (and, if asked, positive) numbers."""
     try:
-        ok = len(value) == length and all(math.isfinite(float(v)) for v in value)
+        ok = len(value) == length and all(is_number(v) and math.isfinite(float(v)) for v in value)
         ok = ok and (not positive or all(float(v) > 0 for v in value))
     except (TypeError, ValueError):
         ok = False
@@ -68,8 +95,9 @@ def check_interval(
     try:
         if not isinstance(value, Iterable):
             raise TypeError(value)
+        ok = all(is_number(v) for v in value)
         a, b = (float(v) for v in value)
-        ok = math.isfinite(a) and math.isfinite(b) and (a <= b if point else a < b)
+        ok = ok and math.isfinite(a) and math.isfinite(b) and (a <= b if point else a < b)
         ok = ok and (a > low if low_open else a >= low) and (b < high if high_open else b <= high)
     except (TypeError, ValueError):
         ok = False

@@ -11,6 +11,7 @@ would take ten minutes, for the tests that interrupt or kill a sweep.
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 import uuid
@@ -68,6 +69,13 @@ def artefact_cell(cell: ToyCell) -> pd.DataFrame:
     """`toy_cell`'s rows, shifted by a shared artefact the cell builds (or finds) in the sweep's cache."""
     offset = cached_artefact("toy_offset", cell.seed, lambda: float(cell.seed), expect=float)
     return toy_cell(cell).assign(value=lambda rows: rows.value + offset)
+
+
+def dying_cell(cell: ToyCell) -> pd.DataFrame:
+    """`toy_cell`, but a cell marked `fail` kills the worker process it runs in, every time."""
+    if cell.fail:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return toy_cell(cell)
 
 
 def executions(log_dir: str | os.PathLike[str], pid: int | None = None) -> list[int]:

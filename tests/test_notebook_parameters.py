@@ -79,6 +79,22 @@ def test_a_misspelt_parameter_is_refused_with_the_notebooks_parameters() -> None
         check_parameters(ns, Study)
 
 
+@pytest.mark.parametrize("injected", ["SEEDS = 5", "_seeds = 5", "seed = 5"])
+def test_a_name_papermill_injected_that_the_notebook_does_not_declare_is_refused(injected: str) -> None:
+    # What the kernel's input history holds after papermill ran the parameters cell and its injected one.
+    ns = namespace(STUDY, **DEFAULTS)
+    ns["In"] = ["", "seeds: int = 2", f"# Parameters\n{injected}\n"]
+    name = injected.split(" = ")[0]
+    with pytest.raises(ValueError, match=rf"unknown parameter\(s\) {name} \(did you mean seeds\?\)"):
+        check_parameters(ns, Study)
+
+
+def test_an_injected_declared_parameter_is_taken() -> None:
+    ns = namespace(STUDY, **{**DEFAULTS, "seeds": 5})
+    ns["In"] = ["", "seeds: int = 2", "# Parameters\nseeds = 5\n"]
+    assert check_parameters(ns, Study)["seeds"] == 5
+
+
 def test_modules_functions_classes_and_private_names_are_not_parameters() -> None:
     ns = namespace(STUDY, **DEFAULTS, json=json, sqrt=math.sqrt, Study=Study, _hidden=3, __doc__="x")
     ns["exit"] = object()
@@ -227,17 +243,40 @@ def executed_code_cells(notebook: dict) -> list[str]:
     ]
 
 
-def test_papermill_run_with_an_unknown_key_in_a_parameters_file_fails_before_any_compute(
+def test_papermill_run_with_an_unknown_key_in_a_parameters_file_or_an_upper_case_p_fails_before_any_compute(
     tmp_path: Path,
 ) -> None:
     params = tmp_path / "params.yaml"
     params.write_text("curve_seed: 3\n")
     results = tmp_path / "results"
-    done, notebook = run_notebook(tmp_path, results, "-f", str(params))
+    done, notebook = run_notebook(tmp_path, results, "-f", str(params), "-p", "DESK_HEIGHT", "0.7")
     assert done.returncode != 0
-    assert "unknown parameter(s) curve_seed (did you mean curve_seeds?)" in done.stdout + done.stderr
+    assert (
+        "unknown parameter(s) curve_seed (did you mean curve_seeds?), DESK_HEIGHT (did you mean desk_height?)"
+        in done.stdout + done.stderr
+    )
     # The failing cell is the one that builds the config: nothing after it ran, nothing was written.
     assert "config_from_parameters" in executed_code_cells(notebook)[-1]
+    assert not results.exists()
+
+
+def test_papermill_python_api_with_an_undeclared_private_parameter_fails_before_any_compute(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import papermill
+
+    results = tmp_path / "results"
+    monkeypatch.setenv("HIPREF_RESULTS_DIR", str(results))
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(tmp_path / "cache"))
+    with pytest.raises(papermill.PapermillExecutionError, match=r"unknown parameter\(s\) _desk_height"):
+        papermill.execute_notebook(
+            str(ROOT / "notebooks" / "05_controllers.ipynb"),
+            str(tmp_path / "out.ipynb"),
+            parameters={"_desk_height": 0.7},
+            kernel_name="hipref",
+            cwd=str(ROOT / "notebooks"),
+            progress_bar=False,
+        )
     assert not results.exists()
 
 

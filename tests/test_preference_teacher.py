@@ -63,7 +63,7 @@ def test_n_candidate_labels_are_valid_and_flips_are_uniform_over_the_others(n_ca
 
 def test_label_vector_conventions() -> None:
     np.testing.assert_array_equal(preference_label_vector(1, 2), [1.0, -1.0])
-    np.testing.assert_array_equal(preference_label_vector(-1.0, 2), [-1.0, 1.0])
+    np.testing.assert_array_equal(preference_label_vector(np.int64(-1), 2), [-1.0, 1.0])
     np.testing.assert_array_equal(preference_label_vector(np.array([-1, 1]), 2), [-1.0, 1.0])
     np.testing.assert_allclose(
         preference_label_vector([-1 / 3, 1, -1 / 3, -1 / 3], 4), [-1 / 3, 1, -1 / 3, -1 / 3]

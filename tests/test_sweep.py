@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import ast
 import os
-import pickle
 import signal
 import subprocess
 import sys
@@ -139,7 +138,7 @@ def test_progress_counts_cached_cells_as_done(tmp_path: Path, capsys: pytest.Cap
 
 
 def test_workers_must_be_positive() -> None:
-    with pytest.raises(ValueError, match="workers must be at least 1, got 0"):
+    with pytest.raises(ValueError, match="workers must be an integer at least 1 or None, got 0"):
         run_sweep(toy_cell, grid(), cache_dir=False, workers=0)
 
 
@@ -161,16 +160,18 @@ def test_damaged_cache_entry_is_recomputed_with_a_warning(tmp_path: Path, log_di
     elif damage == "garbage":
         victim.write_bytes(b"not a pickle at all")
     elif damage == "wrong_type":
-        victim.write_bytes(pickle.dumps(["a list, not a DataFrame"]))
-    else:  # a frame, but not rows of a cell: a stale or foreign pickle
-        victim.write_bytes(pickle.dumps(pd.DataFrame({"seed": [cells[2].seed], "value": [0.0]})))
+        sweep.write_entry(victim, victim.stem, ["a list, not a DataFrame"])
+    else:  # a frame under the right key, but not rows of a cell
+        sweep.write_entry(victim, victim.stem, pd.DataFrame({"seed": [cells[2].seed], "value": [0.0]}))
 
     with pytest.warns(UserWarning, match=victim.name):
         again = run_sweep(toy_cell, cells, cache_dir=cache, workers=1)
     assert again.to_csv() == reference.to_csv()
     assert executions(log_dir) == sorted([*(cell.seed for cell in cells), cells[2].seed])
     # The recomputed entry replaced the damaged one.
-    assert pickle.loads(victim.read_bytes()).equals(reference.iloc[10:15].reset_index(drop=True))
+    key, rows = sweep.read_entry(victim)
+    assert key == victim.stem
+    assert rows.equals(reference.iloc[10:15].reset_index(drop=True))
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -183,14 +184,18 @@ def test_failing_cell_reports_config_and_traceback_and_others_are_cached(
     message = str(raised.value)
     assert repr(cells[1]) in message
     assert "RuntimeError: toy failure in cell with seed 1" in message
-    assert "Traceback (most recent call last)" in message
+    log = raised.value.log
+    assert log is not None and str(log) in message
+    assert "Traceback (most recent call last)" in log.read_text()
     assert [cell for cell, _ in raised.value.failures] == [cells[1]]
     assert {path.stem for path in entries(tmp_path)} == {cell_key(toy_cell, c) for c in (cells[0], cells[2])}
 
 
 def test_wrong_return_type_is_a_failure(tmp_path: Path) -> None:
-    with pytest.raises(SweepError, match="returned list, not a pandas DataFrame"):
+    with pytest.raises(SweepError, match="returned list, not a pandas DataFrame") as raised:
         run_sweep(_returns_list, [ToyCell(seed=0)], cache_dir=False, workers=1)
+    assert raised.value.log is not None
+    raised.value.log.unlink()  # without a cache the log goes to the system's temporary directory
 
 
 def _returns_list(cell: ToyCell) -> list[int]:
@@ -323,7 +328,7 @@ def test_corrupted_artefact_is_rebuilt_with_a_warning(tmp_path: Path) -> None:
         value = cached_artefact("dataset", {"episodes": 3}, build, cache_dir=tmp_path)
     assert value == list(range(1000))
     assert len(builds) == 2
-    assert pickle.loads(path.read_bytes()) == value, "the rebuilt artefact replaced the damaged file"
+    assert sweep.read_entry(path)[1] == value, "the rebuilt artefact replaced the damaged file"
     assert [p.name for p in (tmp_path / "artefacts").iterdir()] == [path.name], "no temporary file left"
 
 
@@ -360,12 +365,12 @@ def test_a_stale_artefact_is_rebuilt_with_a_warning(tmp_path: Path, stale: objec
     expect = sweep.Expect(tuple, _paired)
     built = cached_artefact("pairs", {"n": 3}, _square_pair, cache_dir=tmp_path, expect=expect)
     (path,) = (tmp_path / "artefacts").glob("pairs-*.pkl")
-    path.write_bytes(pickle.dumps(stale))
+    sweep.write_entry(path, sweep.read_entry(path)[0], stale)
     sweep.forget_artefacts()
     with pytest.warns(UserWarning, match=match):
         again = cached_artefact("pairs", {"n": 3}, _square_pair, cache_dir=tmp_path, expect=expect)
     assert again == built
-    assert pickle.loads(path.read_bytes()) == built, "the rebuilt artefact replaced the stale file"
+    assert sweep.read_entry(path)[1] == built, "the rebuilt artefact replaced the stale file"
 
 
 def test_a_plain_type_is_enough_to_refuse_a_foreign_artefact(tmp_path: Path) -> None:
@@ -374,7 +379,7 @@ def test_a_plain_type_is_enough_to_refuse_a_foreign_artefact(tmp_path: Path) -> 
 
     cached_artefact("model", {"n": 1}, build, cache_dir=tmp_path, expect=dict)
     (path,) = (tmp_path / "artefacts").glob("model-*.pkl")
-    path.write_bytes(pickle.dumps(["not", "a", "model"]))
+    sweep.write_entry(path, sweep.read_entry(path)[0], ["not", "a", "model"])
     sweep.forget_artefacts()
     with pytest.warns(UserWarning, match="holds list, expected dict"):
         value = cached_artefact("model", {"n": 1}, build, cache_dir=tmp_path, expect=dict)

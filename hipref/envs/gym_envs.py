@@ -22,6 +22,8 @@ RESET_OPTIONS = frozenset({"param"})
 
 
 def _parameter(env: gym.Env, options: dict[str, Any] | None, bounds: tuple[float, float], name: str) -> float:
+    if options is not None and not isinstance(options, dict):
+        raise ValueError(f"options must be a dict such as {{'param': value}} or None, got {options!r}")
     options = dict(options or {})
     unknown = set(options) - RESET_OPTIONS
     if unknown:

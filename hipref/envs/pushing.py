@@ -402,6 +402,8 @@ class PushingTask:
         control at every physics step, is one compiled call (`execute_push`); a learned pi^l acts once per
         control period until the cube rests after the planned push's duration."""
         mass_estimate = check_parameter("mass estimate", mass_estimate, self.config.mass_range)
+        if np.array_equal(self.start, self.goal):  # reset() refuses equal points: it has not run yet
+            raise RuntimeError("push() before reset(): reset(mass, start, goal) places the cube first")
         if self.low_level is None:
             features, cube_xy, _ = self._expert_push(mass_estimate, no_perturbation(1))
         else:

@@ -15,7 +15,7 @@ from hipref.experiments.domains import DOMAINS
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_range
+from hipref.validation import check_choice, check_grids, check_range
 
 
 @dataclass(frozen=True)
@@ -28,6 +28,7 @@ class R2Config(Protocol):
     """Domains to run: Fig. 2e is wiping, Fig. 2f pushing."""
 
     def __post_init__(self) -> None:
+        check_grids(self)
         super().__post_init__()
         if not self.noise_levels or not self.domains:
             raise ValueError(

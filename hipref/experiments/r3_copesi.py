@@ -19,7 +19,7 @@ from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_run import METHODS as SI_METHODS
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_range
+from hipref.validation import check_choice, check_grids, check_range
 from hipref.verdicts import Difference, better_on_both, combine, no_difference, paired_difference
 
 METHODS: tuple[str, ...] = ("pesi", "co_pesi")
@@ -44,6 +44,7 @@ class R3Config(Protocol):
     """Evaluation episodes per evaluation (section 5: 10)."""
 
     def __post_init__(self) -> None:
+        check_grids(self)
         super().__post_init__()
         if not self.domains:
             raise ValueError(f"domains must name at least one of {sorted(DOMAINS)}, got {self.domains!r}")

@@ -9,6 +9,8 @@ byte-identical whichever backend and however many workers.
 - `engine`: the local pool and the Dask client, and `run_sweep` over them.
 - `cache`: the keys (`cell_key`, `code_version`), the cells' and artefacts' entries (`cached_artefact`,
   `cached_prefix`), their copies in memory and the directory the running sweep caches in.
+- `entries`: an entry on disk (`write_entry`, `read_entry`), carrying its key and a checksum that must
+  match before it is used, and the check that a cache directory can be written.
 
 Only the standard library (and tqdm) is imported at load time: a spawned worker imports this package
 before numpy or torch are loaded, so their one-thread settings take effect.
@@ -27,6 +29,7 @@ from hipref.sweep.cache import (
     forget_artefacts,
 )
 from hipref.sweep.engine import SweepError, run_sweep
+from hipref.sweep.entries import read_entry, write_entry
 
 __all__ = [
     "NO_CACHE",
@@ -40,5 +43,7 @@ __all__ = [
     "code_version",
     "default_cache_dir",
     "forget_artefacts",
+    "read_entry",
     "run_sweep",
+    "write_entry",
 ]

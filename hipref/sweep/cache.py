@@ -7,9 +7,11 @@ pre-training dataset, a pretrained model, demonstrations), and `cached_prefix` f
 studies of different lengths share (evaluation checkpoints, learning clips); both keep what they built or
 loaded in memory for the rest of the process (`forget_artefacts` drops it).
 
-A cache entry is used only if it holds what would be computed: a cell's entry must be a DataFrame with
-the tidy columns, an artefact's whatever its caller's `expect` says; anything else (a damaged, stale or
-foreign pickle) is recomputed with a warning.
+A cache entry is used only if it holds what would be computed: it carries the key it was stored under and
+a checksum of its payload, which must match (`hipref.sweep.entries`); a cell's entry must be a DataFrame
+with the tidy columns, an artefact's whatever its caller's `expect` says; anything else (a damaged, stale,
+moved or foreign pickle) is recomputed with a warning. A cache directory that cannot be written is refused
+before any compute.
 
 While a sweep's cell runs (`artefacts_in`), the artefacts it builds without a `cache_dir` of their own are
 cached in the sweep's directory. Only the standard library is imported at load time.
@@ -25,14 +27,14 @@ import functools
 import hashlib
 import json
 import os
-import pickle
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 import hipref
-from hipref.results import TIDY_COLUMNS, repo_root, write_bytes
+from hipref.results import TIDY_COLUMNS, repo_root
+from hipref.sweep.entries import check_writable, load_entry, write_entry
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -187,32 +189,10 @@ def _rows_problem(rows: Any) -> str | None:
     return f"its rows lack the tidy column(s) {missing}" if missing else None
 
 
-def _load(path: Path | None, problem: Callable[[Any], str | None] | None = None) -> tuple[bool, Any]:
-    """Read a cache entry; (False, None) when there is no cache (`path` None), the entry is absent,
-    unreadable or, by `problem`, not what it should hold, with a warning in the last two cases."""
-    if path is None or not path.exists():
-        return False, None
-    try:
-        with path.open("rb") as f:
-            value = pickle.load(f)
-    except Exception as err:
-        reason: str | None = f"it is unreadable: {err!r}"
-    else:
-        reason = None if problem is None else problem(value)
-    if reason is not None:
-        warnings.warn(f"ignoring cache entry {path}: {reason}; recomputing it", stacklevel=3)
-        return False, None
-    return True, value
-
-
-def _store(path: Path, value: Any) -> None:
-    write_bytes(pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL), path)
-
-
 def load_cell(directory: Path, key: str) -> tuple[bool, Any]:
     """The rows cached under `key` in `directory`: (True, rows), or (False, None) when there is no valid
     entry."""
-    return _load(directory / "cells" / f"{key}.pkl", _rows_problem)
+    return load_entry(directory / "cells" / f"{key}.pkl", key, _rows_problem)
 
 
 def store_cell(fn: CellFn, directory: Path, key: str, rows: pd.DataFrame) -> None:
@@ -226,7 +206,7 @@ def store_cell(fn: CellFn, directory: Path, key: str, rows: pd.DataFrame) -> Non
             stacklevel=3,
         )
         return
-    _store(directory / "cells" / f"{key}.pkl", rows)
+    write_entry(directory / "cells" / f"{key}.pkl", key, rows)
 
 
 @contextlib.contextmanager
@@ -269,15 +249,16 @@ def cached_artefact(
     if key in _ARTEFACTS:
         return _ARTEFACTS[key]
     directory = resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
+    check_writable(directory, "artefacts")
     path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
-    found, value = _load(path, problem)
+    found, value = load_entry(path, key, problem)
     if not found:
         value = build()
         reason = None if problem is None else problem(value)
         if reason is not None:
             raise TypeError(f"artefact {name!r} was built but not cached, as {reason}")
         if path is not None:
-            _store(path, value)
+            write_entry(path, key, value)
     _ARTEFACTS[key] = value
     return value
 
@@ -304,6 +285,7 @@ def cached_prefix(
     held: list[T] | None = _ARTEFACTS.get(key)
     if held is None or len(held) < length:
         directory = resolve_cache_dir(_SWEEP_CACHE_DIR if cache_dir is None else cache_dir)
+        check_writable(directory, "artefacts")
         path = None if directory is None else directory / "artefacts" / f"{name}-{key}.pkl"
 
         def problem(value: Any) -> str | None:
@@ -313,7 +295,7 @@ def cached_prefix(
                 return "an item fails its check"
             return None
 
-        found, loaded = _load(path, problem)
+        found, loaded = load_entry(path, key, problem)
         if found and len(loaded) >= length:
             held = loaded
         else:
@@ -322,7 +304,7 @@ def cached_prefix(
             if reason is not None or len(held) != length:
                 raise TypeError(f"artefact {name!r} was built but not cached, as {reason or 'its length'}")
             if path is not None:
-                _store(path, held)
+                write_entry(path, key, held)
         _ARTEFACTS[key] = held
     return held[:length]
 

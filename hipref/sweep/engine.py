@@ -2,7 +2,8 @@
 
 Local workers never outlive the sweep: an interrupted sweep (KeyboardInterrupt, or the loop over its rows
 closed early) terminates the cells still running, and a worker whose parent dies (a notebook kernel
-killed with SIGKILL) exits at once.
+killed with SIGKILL) exits at once. The cells of a worker that dies (killed, out of memory) run once more
+on a fresh pool. A sweep whose cells still fail raises a short `SweepError` and logs every traceback.
 
 This module imports only the standard library (and tqdm) at load time: a spawned worker runs
 `_init_worker` before numpy or torch are loaded, so their one-thread settings take effect.
@@ -19,13 +20,16 @@ import signal
 import sys
 import threading
 import traceback
+import warnings
 from collections.abc import Generator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from tqdm.auto import tqdm
 
-from hipref.numerics import one_thread
+from hipref.numerics import one_thread, warn_overrides
+from hipref.results import repo_root, write_bytes
 from hipref.sweep.cache import (
     NO_CACHE,
     CacheDir,
@@ -36,6 +40,7 @@ from hipref.sweep.cache import (
     resolve_cache_dir,
     store_cell,
 )
+from hipref.sweep.entries import check_writable
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -56,16 +61,48 @@ _PR_SET_PDEATHSIG = 1
 
 
 class SweepError(RuntimeError):
-    """Some cells failed; the others ran to the end (and were cached). `failures`: (cell, traceback text)."""
+    """Some cells failed; the others ran to the end (and were cached). `failures`: (cell, traceback text);
+    `log`: the file holding every traceback in full (None if it could not be written)."""
 
-    def __init__(self, failures: list[tuple[Any, str]], total: int) -> None:
+    def __init__(self, failures: list[tuple[Any, str]], total: int, log: Path | None = None) -> None:
         self.failures = failures
-        parts = [
-            f"{len(failures)} of {total} cells failed; the others ran to the end and, unless caching"
-            " is off, were cached: fix the cause and run the sweep again to compute only these."
-        ]
-        parts += [f"\n--- {cell!r}\n{tb.rstrip()}" for cell, tb in failures]
-        super().__init__("\n".join(parts))
+        self.log = log
+        shown = ", ".join(repr(cell) for cell, _ in failures[:_CELLS_SHOWN])
+        more = f" and {len(failures) - _CELLS_SHOWN} more" if len(failures) > _CELLS_SHOWN else ""
+        first_cell, first = failures[0]
+        last_lines = "\n".join(first.rstrip().splitlines()[-_LINES_SHOWN:])
+        where = f"every traceback in full: {log}" if log else "(the tracebacks could not be logged)"
+        super().__init__(
+            f"{len(failures)} of {total} cells failed ({shown}{more}); the others ran to the end and, unless"
+            " caching is off, were cached: fix the cause and run the sweep again to compute only these.\n"
+            f"The first error (cell {first_cell!r}) ends:\n{last_lines}\n{where}"
+        )
+
+
+_CELLS_SHOWN = 3
+"""Failed cells a SweepError's message names; the log names all."""
+_LINES_SHOWN = 6
+"""Last lines of the first failure's traceback a SweepError's message shows."""
+
+
+def _failure_log(directory: Path | None, desc: str, failures: list[tuple[Any, str]]) -> Path | None:
+    """Write every failed cell and its traceback to a new log file (under the cache directory's `logs/`,
+    else the system's temporary directory) and return its path; None if it cannot be written."""
+    import tempfile
+    import time
+
+    text = "".join(f"--- {cell!r}\n{tb.rstrip()}\n\n" for cell, tb in failures)
+    name = "".join(c if c.isalnum() else "-" for c in desc)
+    stamp = time.strftime("%Y%m%dT%H%M%S")
+    try:
+        if directory is not None:
+            return write_bytes(text.encode(), directory / "logs" / f"{name}-{stamp}-{os.getpid()}.log")
+        fd, path = tempfile.mkstemp(prefix=f"hipref-{name}-{stamp}-", suffix=".log")
+        with open(fd, "w") as f:
+            f.write(text)
+        return Path(path)
+    except OSError:
+        return None
 
 
 def _init_worker() -> None:
@@ -127,22 +164,48 @@ def _run_cell(fn: CellFn, cell: Any, cache_dir: CacheDir = None) -> tuple[bool, 
 
 
 def _run_local(fn: CellFn, cells: dict[str, Any], workers: int, cache_dir: CacheDir) -> Outcomes:
-    """Yield (key, ok, result) as cells finish, in-process or on a pool of spawned processes."""
+    """Yield (key, ok, result) as cells finish, in-process or on a pool of spawned processes.
+
+    A worker process that dies (killed, out of memory) breaks the pool and loses every cell it had not
+    finished; those cells run once more on a fresh pool, and fail only if they are lost again."""
     if workers <= 1 or len(cells) <= 1:
         for key, cell in cells.items():
             yield key, *_run_cell(fn, cell, cache_dir)
         return
+    lost = yield from _run_pool(fn, cells, workers, cache_dir)
+    if lost:
+        warnings.warn(
+            f"{len(lost)} cell(s) lost their worker process (killed, out of memory): running them again",
+            stacklevel=2,
+        )
+        lost_again = yield from _run_pool(fn, {key: cells[key] for key in lost}, workers, cache_dir)
+        for key, text in lost_again.items():
+            yield key, False, text
+
+
+def _run_pool(
+    fn: CellFn, cells: dict[str, Any], workers: int, cache_dir: CacheDir
+) -> Generator[tuple[str, bool, Any], None, dict[str, str]]:
+    """Yield (key, ok, result) of the cells that finish on one pool; return {key: traceback} of those
+    whose worker died."""
+    from concurrent.futures.process import BrokenProcessPool
+
     # "spawn" starts clean interpreters: safe under Jupyter and with torch, where fork can deadlock.
     context = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(min(workers, len(cells)), mp_context=context, initializer=_init_worker)
     finished = False
+    lost: dict[str, str] = {}
     try:
         futures = {pool.submit(_run_cell, fn, cell, cache_dir): key for key, cell in cells.items()}
         for future in as_completed(futures):
             try:
-                yield futures[future], *future.result()
-            except Exception:  # the worker process died (e.g. out of memory)
-                yield futures[future], False, traceback.format_exc()
+                outcome = future.result()
+            except BrokenProcessPool:
+                lost[futures[future]] = traceback.format_exc()
+                continue
+            except Exception:  # the cell's rows could not be sent back (e.g. not picklable)
+                outcome = (False, traceback.format_exc())
+            yield futures[future], *outcome
         finished = True
     finally:
         if not finished:
@@ -150,6 +213,7 @@ def _run_local(fn: CellFn, cells: dict[str, Any], workers: int, cache_dir: Cache
             # the running cells, so stop them rather than wait for them.
             _terminate_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+    return lost
 
 
 def _terminate_workers(pool: ProcessPoolExecutor) -> None:
@@ -182,6 +246,17 @@ def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str, cache_dir: Cach
                 yield futures[future], False, traceback.format_exc()
 
 
+def _check_sweep_input(fn: CellFn, workers: Any) -> None:
+    """Refuse, before any compute, a `workers` that is no whole number of at least 1, and an `fn` that
+    workers cannot import by name (a lambda or a nested function, which would also share a cache key with
+    any other of its name)."""
+    if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
+        raise ValueError(f"workers must be an integer at least 1 or None, got {workers!r}")
+    name = getattr(fn, "__qualname__", None)
+    if not callable(fn) or name is None or "<" in name:
+        raise ValueError(f"fn must be a module-level function (workers import it by name), got {fn!r}")
+
+
 def run_sweep(
     fn: CellFn,
     cells: Sequence[Any],
@@ -202,9 +277,11 @@ def run_sweep(
     """
     import pandas as pd
 
-    if workers is not None and workers < 1:
-        raise ValueError(f"workers must be at least 1, got {workers}")
+    _check_sweep_input(fn, workers)
     directory = resolve_cache_dir(cache_dir)
+    check_writable(directory, "cells")
+    root = repo_root()
+    warn_overrides(None if root is None else root / "environment.txt")
     cells_cache: CacheDir = NO_CACHE if directory is None else directory  # where the cells' artefacts go
     keys = [cell_key(fn, cell) for cell in cells]
     done: dict[str, pd.DataFrame] = {}
@@ -237,9 +314,8 @@ def run_sweep(
                         failures[key] = result
                     bar.update(count[key])
     if failures:
-        raise SweepError(
-            [(cell, failures[key]) for key, cell in pending.items() if key in failures], len(cells)
-        )
+        failed = [(cell, failures[key]) for key, cell in pending.items() if key in failures]
+        raise SweepError(failed, len(cells), _failure_log(directory, desc, failed))
     if not cells:
         return pd.DataFrame()
     return pd.concat([done[key] for key in keys], ignore_index=True)

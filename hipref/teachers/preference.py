@@ -73,8 +73,12 @@ def preference_label_vector(label: object, n_candidates: int) -> np.ndarray:
     if n_candidates < 2:
         raise ValueError(f"n_candidates must be an integer >= 2, got {n_candidates!r}")
     if n_candidates == 2 and isinstance(label, numbers.Real) and not isinstance(label, bool | np.bool_):
-        if float(label) not in (-1.0, 1.0):
-            raise ValueError(f"a preference over 2 candidates must be -1 or 1, got {label!r}")
+        # An int: a float 1.0 is more likely a probability or a vector's entry than a label.
+        if not isinstance(label, numbers.Integral) or label not in (-1, 1):
+            raise ValueError(
+                "a preference over 2 candidates must be the integer -1 or 1, "
+                f"got {label!r} ({type(label).__name__})"
+            )
         return np.array([float(label), -float(label)])
     other = -1.0 / (n_candidates - 1)
     allowed = f"a length-{n_candidates} vector with one entry 1 and the others {other:.4g}"
