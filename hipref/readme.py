@@ -174,23 +174,17 @@ def _noise(results: Path) -> dict[str, str]:
 
 
 def _final(
-    rows: pd.DataFrame,
-    domain: str,
-    noise: float,
-    metric: str,
-    method: str = "co_pesi",
-    baseline: str = "pesi",
+    rows: pd.DataFrame, domain: str, noise: float, metric: str, baseline: str = "pesi"
 ) -> verdicts.Difference:
-    return verdicts.Difference(
-        *final_difference(rows, domain, noise, metric, method=method, baseline=baseline)
-    )
+    """CO-PESI minus `baseline` at the last evaluation (`final_difference`)."""
+    return verdicts.Difference(*final_difference(rows, domain, noise, metric, baseline=baseline))
 
 
 def _copesi(results: Path) -> dict[str, str]:
     rows = _csv(results, "data/04_r3_copesi.csv")
     filters = _csv(results, "tables/04_filter_quality.csv")
     estimated = _csv(results, "data/06_copesi_estimated.csv")
-    told = _final(estimated, "pushing", 0.1, "param_error", method="co_pesi", baseline="co_pesi_estimated")
+    told = _final(estimated, "pushing", 0.1, "param_error", baseline="co_pesi_estimated")
     return {
         "co_w20": interval(_final(rows, "wiping", 0.2, "param_error"), " cm", 2, 100.0),
         "co_w30": interval(_final(rows, "wiping", 0.3, "param_error"), " cm", 2, 100.0),
