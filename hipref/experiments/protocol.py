@@ -37,13 +37,13 @@ class Protocol:
     """Evaluation episodes per evaluation (section 5: 10)."""
     eval_slices: int = 3
     """Probing slices per evaluation episode (for the multi-slice estimate)."""
-    n_trajectories: int = 100
-    """Algorithm 4 trajectories (A.7: 100)."""
+    n_trajectories: int = 300
+    """Algorithm 4 trajectories (the full profile: the study's 3,000; A.7's 100 starve SI, notebook 13)."""
     pretrain_steps: int = 3000
     """Adam steps of Algorithm 4."""
-    pretrain_loss: str = "brier"
-    """Algorithm 4's loss: 'brier', 'expectation' or 'brier_expectation' (see `pretrain` of
-    `hipref.learners.sysid`)."""
+    pretrain_loss: str = "nll"
+    """Algorithm 4's loss: 'nll' (the study's), or A.7's mean squared loss 'brier', 'expectation' or
+    'brier_expectation' (see `PretrainData.loss`)."""
     learning_rate: float = 1e-2
     """Gradient step size of SI fine-tuning (A.7: 0.01)."""
 

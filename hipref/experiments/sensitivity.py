@@ -1,7 +1,8 @@
 """How much the SI conclusions hang on choices the paper leaves open (notebook 08).
 
-Each *variant* changes one reading of the paper from the default (the paper's reading where it speaks):
-what Algorithm 4's mean squared loss is taken over, how Algorithm 2 samples the candidates, over what Pr
+Each *variant* changes one reading of the paper from the default (the paper's reading where it speaks, and
+the study's where notebook 13 shows the paper's starves SI): Algorithm 4 as A.7 reads it (100 trajectories,
+a mean squared loss), what that mean squared loss is taken over, how Algorithm 2 samples the candidates, over what Pr
 of Eq. 2 is a distribution, which parameters of SI preferences fine-tune, the fine-tuning step size, and
 CO-PESI's classifier schedule. The previous design of this study (expectation-only pretraining,
 candidates from SI's belief, classifiers reset every co-teaching step) is kept as one more variant.
@@ -20,28 +21,32 @@ import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
 from hipref.experiments.protocol import Protocol
-from hipref.experiments.si_pretraining import PretrainCell, pretrain_models
+from hipref.experiments.si_pretraining import PAPER_A7, PretrainCell, pretrain_models
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_range
 
-VARIANTS: dict[str, tuple[str, FineTuning]] = {
-    "default": ("brier", FineTuning()),
-    "pretrain_expectation": ("expectation", FineTuning()),
-    "pretrain_brier_expectation": ("brier_expectation", FineTuning()),
-    "belief_candidates": ("brier", FineTuning(candidate_sampling="belief")),
-    "pr_over_phi": ("brier", FineTuning(pr_domain="all")),
-    "last_layer": ("brier", FineTuning(fine_tuned="last_layer")),
-    "output_bias": ("brier", FineTuning(fine_tuned="output_bias")),
-    "learning_rate_0.001": ("brier", FineTuning(learning_rate=1e-3)),
-    "learning_rate_0.05": ("brier", FineTuning(learning_rate=5e-2)),
-    "reset_every_step": ("brier", FineTuning(coteaching_schedule="reset_every_step")),
+VARIANTS: dict[str, tuple[str, int | None, FineTuning]] = {
+    "default": ("nll", None, FineTuning()),
+    "paper_a7": (PAPER_A7.loss, PAPER_A7.n_trajectories, FineTuning()),
+    "pretrain_expectation": ("expectation", None, FineTuning()),
+    "pretrain_brier_expectation": ("brier_expectation", None, FineTuning()),
+    "belief_candidates": ("nll", None, FineTuning(candidate_sampling="belief")),
+    "pr_over_phi": ("nll", None, FineTuning(pr_domain="all")),
+    "last_layer": ("nll", None, FineTuning(fine_tuned="last_layer")),
+    "output_bias": ("nll", None, FineTuning(fine_tuned="output_bias")),
+    "learning_rate_0.001": ("nll", None, FineTuning(learning_rate=1e-3)),
+    "learning_rate_0.05": ("nll", None, FineTuning(learning_rate=5e-2)),
+    "reset_every_step": ("nll", None, FineTuning(coteaching_schedule="reset_every_step")),
     "previous_design": (
         "expectation",
+        PAPER_A7.n_trajectories,
         FineTuning(candidate_sampling="belief", coteaching_schedule="reset_every_step"),
     ),
 }
-"""Variant name -> (Algorithm 4's loss, how preferences fine-tune SI)."""
+"""Variant name -> (Algorithm 4's loss, its trajectories (None: the config's `n_trajectories`), how
+preferences fine-tune SI). 'paper_a7' is Algorithm 4 as A.7 reads (`PAPER_A7`), the study's default before
+notebook 13 showed it starves SI."""
 
 COTEACHING_VARIANTS: tuple[str, ...] = ("default", "belief_candidates", "reset_every_step", "previous_design")
 """The variants whose CO-PESI - PESI comparison is run: the classifier schedules, and the candidate
@@ -51,9 +56,10 @@ sampling that decides which pairs the classifiers see."""
 @dataclass(frozen=True)
 class SensitivityConfig(Protocol):
     """The variants x domains x environments of notebook 08. The protocol's `pretrain_loss` and
-    `learning_rate` are not read: each variant sets its own (VARIANTS)."""
+    `learning_rate` are not read: each variant sets its own (VARIANTS), and its trajectories where it names
+    them."""
 
-    variants: tuple[str, ...] = ("default", "pretrain_expectation", "reset_every_step", "previous_design")
+    variants: tuple[str, ...] = ("default", "paper_a7", "reset_every_step", "previous_design")
     """Which variants to run, each a key of VARIANTS (the full profile runs them all)."""
     domains: tuple[str, ...] = ("wiping", "pushing")
     """Domains to run."""
@@ -82,8 +88,8 @@ class SensitivityConfig(Protocol):
 
 
 def variant_protocol(config: SensitivityConfig, variant: str) -> tuple[Protocol, FineTuning]:
-    """The protocol (its pretraining loss set by the variant) and the fine-tuning of one variant."""
-    loss, tuning = VARIANTS[variant]
+    """The protocol (its pretraining set by the variant) and the fine-tuning of one variant."""
+    loss, n_trajectories, tuning = VARIANTS[variant]
     protocol = Protocol(
         heights=config.heights,
         masses=config.masses,
@@ -92,7 +98,7 @@ def variant_protocol(config: SensitivityConfig, variant: str) -> tuple[Protocol,
         eval_every=config.eval_every,
         eval_episodes=config.eval_episodes,
         eval_slices=config.eval_slices,
-        n_trajectories=config.n_trajectories,
+        n_trajectories=config.n_trajectories if n_trajectories is None else n_trajectories,
         pretrain_steps=config.pretrain_steps,
         pretrain_loss=loss,
     )

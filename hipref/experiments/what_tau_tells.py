@@ -1,7 +1,7 @@
 """How much does a slice tau tell about the parameter? Strong regressors on Algorithm 4's slices (nb. 13).
 
 For each domain, gradient-boosted trees and k-nearest neighbours are fitted on the slices Algorithm 4
-collects (`hipref.experiments.si_pretraining.collect_trajectories`, `cut_slices`) and scored on held-out
+collects (`hipref.experiments.si_pretraining.collected_trajectories`, `cut_slices`) and scored on held-out
 environments: trajectories of a separate collection (`test_seed`), whose parameters no training slice has.
 One factor changes at a time from the base (h = 3, slices cut anywhere in the clip, every column, the largest
 data size): the slice length h, where in the clip the slice is cut, which columns of tau are kept, and the
@@ -30,15 +30,16 @@ from hipref.control.tool import FEATURES_PER_PERIOD
 from hipref.experiments.constant_guess import CONSTANT_BEST, CONSTANT_MIDDLE, best_constant, range_middle
 from hipref.experiments.domains import DOMAINS, domain_spec
 from hipref.experiments.si_pretraining import (
+    PAPER_A7,
     PretrainData,
     Trajectories,
-    collect_trajectories,
+    collected_trajectories,
     cut_slices,
     fit_si,
 )
 from hipref.learners.calibration import pit
 from hipref.results import tidy_rows
-from hipref.sweep import cached_artefact, run_sweep
+from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_int
 
 COLUMN_GROUPS: dict[str, tuple[int, int]] = {
@@ -72,8 +73,9 @@ REGRESSORS: tuple[str, ...] = ("gbt", "knn")
 """'gbt': histogram gradient-boosted trees; 'knn': k-nearest neighbours on standardised columns."""
 
 OSI_READINGS: tuple[str, ...] = ("paper_a7", "nll", "nll_more_data")
-"""SI pretrained by Algorithm 4 as A.7 says (Brier on the distribution, 100 trajectories, Table 2's
-network), with the negative log-likelihood instead, and with it on the largest data size collected."""
+"""SI pretrained by Algorithm 4 as A.7 says (`PAPER_A7`: Brier on the distribution, 100 trajectories,
+Table 2's network), with the negative log-likelihood instead, and with it on the largest data size collected
+(the study's OSI, `PretrainData()`, when that is its 3,000)."""
 
 BASE_HISTORY = 3
 """h of the base setting (Table 2: 3), the one OSI reads."""
@@ -82,7 +84,7 @@ BASE_HISTORY = 3
 def osi_reading(name: str, n_largest: int, pretrain_steps: int) -> PretrainData:
     """The Algorithm 4 configuration of an OSI reading (`OSI_READINGS`)."""
     check_choice("name", name, OSI_READINGS)
-    paper = PretrainData(pretrain_steps=pretrain_steps)
+    paper = dataclasses.replace(PAPER_A7, pretrain_steps=pretrain_steps)
     if name == "paper_a7":
         return paper
     if name == "nll":
@@ -248,20 +250,12 @@ def measure_domain(domain: str, config: TauConfig) -> pd.DataFrame:
     """Every setting of `config` for one domain: regressors, OSI readings and the constant guess."""
     spec = domain_spec(domain)
     low, high = spec.candidates.low, spec.candidates.high
-    n_largest = max(*config.n_trajectories, config.base_trajectories, PretrainData().n_trajectories)
+    n_largest = max(*config.n_trajectories, config.base_trajectories, PAPER_A7.n_trajectories)
     n_base = config.base_trajectories
     data = PretrainData(seed=config.seed)
-    train_all = cached_artefact(
-        f"tau_trajectories_{domain}",
-        (n_largest, data.collection),
-        lambda: collect_trajectories(domain, n_largest, data),
-    )
-    test = cached_artefact(
-        f"tau_trajectories_{domain}",
-        (config.test_trajectories, dataclasses.replace(data, seed=config.test_seed).collection),
-        lambda: collect_trajectories(
-            domain, config.test_trajectories, dataclasses.replace(data, seed=config.test_seed)
-        ),
+    train_all = collected_trajectories(domain, n_largest, data)
+    test = collected_trajectories(
+        domain, config.test_trajectories, dataclasses.replace(data, seed=config.test_seed)
     )
 
     def first(n: int) -> Trajectories:

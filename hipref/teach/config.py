@@ -58,8 +58,9 @@ class TeachConfig:
     session: str = ""
     """File name of the session under the results directory's `sessions/`; '' names it after the teacher,
     the domain and the seed. A person's session resumes from it; the stand-in's is written afresh."""
-    n_trajectories: int = 100
-    """Algorithm 4 trajectories SI is pretrained on (A.7: 100; the SI studies' model is reused)."""
+    n_trajectories: int = 300
+    """Algorithm 4 trajectories SI is pretrained on (the full profile: the study's 3,000, the SI studies'
+    model, reused; A.7: 100)."""
     pretrain_steps: int = 3000
     """Adam steps of Algorithm 4."""
 
