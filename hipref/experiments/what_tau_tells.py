@@ -13,7 +13,6 @@ error and for the calibration of Pr(phi | tau) (PIT, `hipref.learners.calibratio
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,7 +34,7 @@ from hipref.experiments.si_pretraining import (
     Trajectories,
     collected_trajectories,
     cut_slices,
-    fit_si,
+    pretrained_model,
 )
 from hipref.learners.calibration import pit
 from hipref.results import tidy_rows
@@ -299,7 +298,7 @@ def measure_domain(domain: str, config: TauConfig) -> pd.DataFrame:
                 for name in config.regressors
             ]
             if setting == base:
-                frames += _osi_and_constants(domain, config, first, (test_features, truths, index), n_largest)
+                frames += _osi_and_constants(domain, config, (test_features, truths, index), n_largest)
         frames += [
             _frame(rows, domain, name, factor, level, config.seed) for name, rows in estimates_of[setting]
         ]
@@ -307,25 +306,17 @@ def measure_domain(domain: str, config: TauConfig) -> pd.DataFrame:
 
 
 def _osi_and_constants(
-    domain: str,
-    config: TauConfig,
-    first: Callable[[int], Trajectories],
-    test: tuple[np.ndarray, np.ndarray, np.ndarray],
-    n_largest: int,
+    domain: str, config: TauConfig, test: tuple[np.ndarray, np.ndarray, np.ndarray], n_largest: int
 ) -> list[pd.DataFrame]:
     """OSI readings (error, estimates, PIT of every held-out slice) and the constant guesses on the base
-    setting's held-out slices."""
+    setting's held-out slices. Each reading's model is the study's cached one where the study pretrains the
+    same (the largest reading is notebook 02's OSI at the full profile)."""
     test_features, truths, index = test
     spec = domain_spec(domain)
     frames = []
     for reading in config.osi_readings:
-        data = osi_reading(reading, n_largest, config.pretrain_steps)
-        if data.n_trajectories > len(first(n_largest).parameters):
-            raise ValueError(
-                f"OSI reading {reading} needs {data.n_trajectories} trajectories, more than collected"
-            )
-        features, parameters, _, _ = cut_slices(first(data.n_trajectories), data.history)
-        model = fit_si(domain, features, parameters, data)
+        data = dataclasses.replace(osi_reading(reading, n_largest, config.pretrain_steps), seed=config.seed)
+        model = pretrained_model(domain, data)
         with torch.no_grad():
             probabilities = (
                 model.distribution(torch.as_tensor(test_features, dtype=torch.float32)).double().numpy()
