@@ -12,7 +12,9 @@
 - `--committed` writes a notebook as it is committed: without papermill's cell of injected parameters, whose
   values the parameters cell already holds (the quick profile is the defaults), and with its cells numbered
   from 1, so that a person who runs it top to bottom gets this notebook, and an edit of the parameters cell
-  is not overridden. Without it the injected cell stays: it records which parameters the run used.
+  is not overridden. Without it the injected cell stays: it records which parameters the run used;
+- ended by SIGTERM (as make and xargs end a job) or an interrupt, it stops the kernel and the kernel's
+  sweep workers before it exits: nothing is left running.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from typing import Any
 
 import nbformat
 import papermill
+import psutil
 import yaml
 
 from hipref.kernel import IPCKernelManager
@@ -153,6 +156,7 @@ def execute(
     through; a failure or an interrupt raises and leaves `output` untouched."""
     output.parent.mkdir(parents=True, exist_ok=True)
     partial = temporary_beside(output)
+    _PARTIALS.add(partial)
     try:
         executed = papermill.execute_notebook(
             str(notebook),
@@ -172,13 +176,36 @@ def execute(
         nbformat.write(executed, str(partial))
         os.replace(partial, output)
     finally:
+        _PARTIALS.discard(partial)
         with contextlib.suppress(FileNotFoundError):
             partial.unlink()
 
 
+_PARTIALS: set[Path] = set()
+"""The temporary files of the executions under way, removed by `_terminate`."""
+
+
+def end_descendants(grace: float = 5.0) -> None:
+    """Stop every process this one started, and theirs: the kernel and the workers of its sweep. A kernel
+    manager ended by a signal does not shut its kernel down, and the kernel's workers live as long as it."""
+    children = psutil.Process().children(recursive=True)
+    for child in children:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            child.terminate()
+    _, alive = psutil.wait_procs(children, timeout=grace)
+    for child in alive:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            child.kill()
+
+
 def _terminate(signum: int, _frame: object) -> None:
-    # xargs and make end a job with SIGTERM: leave through the same clean-up as an interrupt.
-    raise SystemExit(128 + signum)
+    # xargs and make end a job with SIGTERM: stop the kernel and its workers, remove the partial output and
+    # leave at once (papermill's own clean-up would wait for the stopped kernel's reply).
+    end_descendants()
+    for partial in _PARTIALS:
+        with contextlib.suppress(FileNotFoundError):
+            partial.unlink()
+    os._exit(128 + signum)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -206,14 +233,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _terminate)
     overrides = {name: yaml.safe_load(value) for name, value in args.parameter}
     parameters = load_parameters(args.parameters) | overrides
-    execute(
-        args.notebook,
-        args.output,
-        parameters,
-        committed=args.committed,
-        kernel=args.kernel,
-        progress_bar=not args.no_progress_bar,
-    )
+    try:
+        execute(
+            args.notebook,
+            args.output,
+            parameters,
+            committed=args.committed,
+            kernel=args.kernel,
+            progress_bar=not args.no_progress_bar,
+        )
+    except BaseException:
+        end_descendants()  # Ctrl-C interrupts the kernel's cell but leaves the kernel running
+        raise
     return 0
 
 

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
 import nbformat
+import psutil
 import pytest
 from nbformat.v4 import new_code_cell, new_notebook
 from papermill.exceptions import PapermillExecutionError
@@ -138,3 +140,30 @@ def test_nbval_starts_its_kernels_on_sockets_of_their_own(tmp_path: Path) -> Non
         check=False,
     )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+
+
+def test_a_terminated_execution_leaves_no_kernel_or_worker_running(tmp_path: Path) -> None:
+    notebook = tmp_path / "sleeps.ipynb"
+    cell = (
+        "import subprocess, sys, time\n"
+        "subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(120)'])\n"
+        "time.sleep(120)"
+    )
+    nbformat.write(new_notebook(cells=[new_code_cell(cell)]), str(notebook))
+    output = tmp_path / "o.ipynb"
+    runner = subprocess.Popen([sys.executable, "-m", "hipref.run_notebook", str(notebook), str(output)])
+    try:
+        descendants: list[psutil.Process] = []
+        deadline = time.monotonic() + 120
+        # The kernel and the process its cell started (as a sweep starts its workers).
+        while len(descendants) < 2 and time.monotonic() < deadline and runner.poll() is None:
+            time.sleep(0.5)
+            descendants = psutil.Process(runner.pid).children(recursive=True)
+        assert len(descendants) >= 2, "the kernel did not start its cell"
+        runner.terminate()
+        assert runner.wait(timeout=60) != 0
+        _, alive = psutil.wait_procs(descendants, timeout=10)
+        assert not alive, f"left running: {[p.cmdline() for p in alive]}"
+    finally:
+        runner.kill()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sleeps.ipynb"], "a partial file was left behind"
