@@ -49,6 +49,8 @@ class R1Config(Protocol):
             ("held_out_masses", self.held_out_masses, self.masses, "pushing"),
         ):
             candidates = domain_spec(domain).candidates
+            if not values:
+                raise ValueError(f"{name} must hold at least one value in [{candidates.low}, {candidates.high}]")
             for value in values:
                 check_range(name, value, candidates.low, candidates.high)
                 if value in grid:
@@ -57,7 +59,6 @@ class R1Config(Protocol):
             raise ValueError("held_out_seeds must hold at least one seed, got ()")
         for seed in self.held_out_seeds:
             check_int("held_out_seeds", seed, self.seeds)
-        self.held_out()  # validates the held-out grid as a protocol (each list non-empty)
 
     def held_out(self) -> Protocol:
         """The held-out grid as a protocol of its own, evaluated after the last episode only."""
