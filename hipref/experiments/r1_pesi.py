@@ -50,7 +50,8 @@ class R1Config(Protocol):
         ):
             candidates = domain_spec(domain).candidates
             if not values:
-                raise ValueError(f"{name} must hold at least one value in [{candidates.low}, {candidates.high}]")
+                low, high = candidates.low, candidates.high
+                raise ValueError(f"{name} must hold at least one value in [{low}, {high}]")
             for value in values:
                 check_range(name, value, candidates.low, candidates.high)
                 if value in grid:
