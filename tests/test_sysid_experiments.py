@@ -188,3 +188,23 @@ def test_pretraining_builds_each_domains_model_once_in_the_cache_the_runs_read(t
     sweep.forget_artefacts()
     pretrained_model("wiping", small, tmp_path)
     assert {path: path.stat().st_mtime_ns for path in stored} == stored
+
+
+def test_notebook_02s_held_out_grid_shares_no_environment_with_the_grid_and_is_read_at_the_end() -> None:
+    from hipref.experiments.r1_pesi import R1Config, cells, held_out_cells
+
+    config = R1Config(heights=(0.6, 0.8), masses=(11.0,), seeds=2, held_out_seeds=(100, 101))
+    grid = {(c.domain, c.ground_truth, c.seed) for c in cells(config)}
+    held_out = held_out_cells(config)
+    assert {c.method for c in held_out} == {"osi", "pesi"}
+    assert len(held_out) == 2 * 2 * (1 + 1)  # methods x domains x (one held-out truth x two seeds)
+    assert not grid & {(c.domain, c.ground_truth, c.seed) for c in held_out}
+    assert {c.evaluated_at for c in held_out} == {(0, config.episodes)}
+    for bad, name in (
+        ({"held_out_heights": (0.6,)}, "held_out_heights"),
+        ({"held_out_masses": ()}, "held_out_masses"),
+        ({"held_out_seeds": (1,)}, "held_out_seeds"),
+        ({"held_out_seeds": ()}, "held_out_seeds"),
+    ):
+        with pytest.raises(ValueError, match=name):
+            R1Config(**{"heights": (0.6, 0.8), "seeds": 2, **bad})
