@@ -24,43 +24,13 @@ from hipref import verdicts
 from hipref.experiments.noise_estimation import overestimate, paper_distance
 from hipref.experiments.r3_copesi import final_difference
 from hipref.experiments.robustness import best_learner, noise_table
+from hipref.readme_beyond import values as beyond
+from hipref.readme_format import WORDS, interval, signed, significant_steps, slope_text
 from hipref.results import repo_root
-
-WORDS = {
-    "yes": "holds",
-    "no": "no",
-    "no difference detected": "no difference detected",
-    "too few environments to decide": "too few environments to decide",
-}
-"""How each verdict of `hipref.verdicts` reads at the start of a finding."""
 
 SECTIONS: tuple[str, ...] = ("findings", "copesi")
 """The generated sections: each one's text is `hipref/readme_<name>.md`, with a placeholder for every
 number and verdict."""
-
-
-def signed(value: float, digits: int) -> str:
-    """`value` with its sign, as the README writes it (a true minus sign)."""
-    return f"{value:+.{digits}f}".replace("-", "\N{MINUS SIGN}")
-
-
-def interval(d: verdicts.Difference, unit: str, digits: int, scale: float = 1.0) -> str:
-    """'−1.9 cm (CI −2.8 to −1.2)', or without the interval over too few environments to draw one."""
-    mean = f"{signed(scale * d.mean, digits)}{unit}"
-    if d.n < verdicts.MIN_ENVIRONMENTS:
-        return f"{mean}, no interval over {d.n} environments"
-    return f"{mean} (CI {signed(scale * d.low, digits)} to {signed(scale * d.high, digits)})"
-
-
-def slope_text(t: verdicts.Trend, unit: str, digits: int, scale: float) -> str:
-    """A slope with its interval, as `interval` writes a difference."""
-    return interval(verdicts.Difference(t.slope, t.low, t.high, t.n), unit, digits, scale)
-
-
-def significant_steps(table: pd.DataFrame, *, increasing: bool) -> str:
-    """'k of K': the steps whose whole interval lies on the claimed side of zero."""
-    held = (table["low"] > 0) if increasing else (table["high"] < 0)
-    return f"{int(held.sum())} of {len(table)}"
 
 
 def _csv(results: Path, name: str) -> pd.DataFrame:
@@ -323,6 +293,7 @@ def values(results: Path, root: Path) -> dict[str, str]:
         **_robust(results),
         **_readings(results),
         **_table3(results),
+        **beyond(results),
     }
 
 

@@ -2,9 +2,9 @@
 
 Each *variant* changes one reading of the paper from the default (the paper's reading where it speaks, and
 the study's where notebook 13 shows the paper's starves SI): Algorithm 4 as A.7 reads it (100 trajectories,
-a mean squared loss), what that mean squared loss is taken over, how Algorithm 2 samples the candidates, over what Pr
-of Eq. 2 is a distribution, which parameters of SI preferences fine-tune, the fine-tuning step size, and
-CO-PESI's classifier schedule. The previous design of this study (expectation-only pretraining,
+a mean squared loss), what that mean squared loss is taken over, how Algorithm 2 samples the candidates,
+over what Pr of Eq. 2 is a distribution, which parameters of SI preferences fine-tune, the fine-tuning step
+size, and CO-PESI's classifier schedule. The previous design of this study (expectation-only pretraining,
 candidates from SI's belief, classifiers reset every co-teaching step) is kept as one more variant.
 
 For every variant and environment of the grid the study runs OSI, PESI with perfect preferences and, for
