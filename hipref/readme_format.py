@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pandas as pd
 
 from hipref import verdicts
@@ -37,3 +39,17 @@ def significant_steps(table: pd.DataFrame, *, increasing: bool) -> str:
     """'k of K': the steps whose whole interval lies on the claimed side of zero."""
     held = (table["low"] > 0) if increasing else (table["high"] < 0)
     return f"{int(held.sum())} of {len(table)}"
+
+
+def csv(results: Path, name: str) -> pd.DataFrame:
+    """A CSV file of the results directory."""
+    return pd.read_csv(results / name)
+
+
+UNITS = {"wiping": (" cm", 100.0, 1), "pushing": (" kg", 1.0, 2)}
+"""How each domain's parameter error is written: unit, scale from SI units and digits."""
+
+
+def percent(level: float) -> str:
+    """'20 %': a share as the README writes it."""
+    return f"{100 * level:.0f} %"
