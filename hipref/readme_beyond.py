@@ -23,7 +23,7 @@ from hipref.experiments.answers_to_success import CONSISTENT, told_against_chose
 from hipref.experiments.conditioning import TOLERANCE, conditioning
 from hipref.experiments.domains import DOMAINS
 from hipref.experiments.si_pretraining import PAPER_A7
-from hipref.readme_format import WORDS, interval, signed
+from hipref.readme_format import UNITS, WORDS, interval, percent, signed
 
 LOSSES = {
     "nll": "the negative log-likelihood",
@@ -37,10 +37,10 @@ SI_STUDIES: tuple[str, ...] = (
     "02_r1_pesi",
     "03_r2_noise",
     "04_r3_copesi",
-    "08_si_sensitivity",
     "11_teachers_and_robustness",
 )
-"""The notebooks whose SI comparisons set OSI beside a constant guess."""
+"""The notebooks whose SI comparisons set OSI beside a constant guess and whose parameters name Algorithm 4's
+reading (notebook 08 varies it: its `default` variant is the code's)."""
 
 COVERAGE = 0.9
 """The interval whose coverage of the truth the README quotes (notebook 13's `coverage_90`)."""
@@ -105,7 +105,7 @@ def _learned_controller(results: Path) -> dict[str, str]:
     out: dict[str, str] = {
         "nb10_spread": f"{spreads[-1]:g}",
         "nb10_margin": f"{SUCCESS_MARGIN:.2f}",
-        "nb10_tolerance": f"{TOLERANCE:.0%}".replace("%", " %"),
+        "nb10_tolerance": percent(TOLERANCE),
     }
     replaces, acts = [], []
     for domain in DOMAINS:
@@ -136,11 +136,9 @@ def _learned_controller(results: Path) -> dict[str, str]:
                 & (table["comparison"] == "pesi - osi (learned)")
             ].iloc[0]
         )
-        unit_si, scale_si, digits_si = (" cm", 100.0, 1) if domain == "wiping" else (" kg", 1.0, 2)
-        out[f"nb10_si_{domain}"] = interval(si, unit_si, digits_si, scale_si)
-        out.setdefault("nb10_si_verdicts", "")
-        out["nb10_si_verdicts"] += ("" if domain == "wiping" else ", ") + verdicts.better(
-            si, lower_is_better=True
+        unit_si, scale_si, digits_si = UNITS[domain]
+        out[f"nb10_si_{domain}"] = (
+            f"{interval(si, unit_si, digits_si, scale_si)}: {verdicts.better(si, lower_is_better=True)}"
         )
     out["nb10_replaces"] = verdicts.combine(replaces)
     out["nb10_acts"] = verdicts.combine(acts)
@@ -157,6 +155,8 @@ def _claims_verdicts(results: Path, section: str) -> list[str]:
 
 
 ANSWER_BARS = {0.0: 10, 0.2: 30}
+FLIPS = 0.2
+"""The flip rate of the paper's teacher at which notebook 12 sets its bars beside perfect answers."""
 """Notebook 12's bars: answers to one step of Phi at each flip rate, told the kind of teacher."""
 
 SUCCESS_BARS = {"wiping": 0.9, "pushing": 0.8}
@@ -188,7 +188,7 @@ def _answers(results: Path) -> dict[str, str]:
     checkpoint = max(c for c in params["checkpoints"] if c <= 99)
     out = {
         "nb12_met": f"{held.count(verdicts.YES)} of the {len(held)}",
-        "nb12_consistent": f"{CONSISTENT:.0%}".replace("%", " %"),
+        "nb12_consistent": percent(CONSISTENT),
         "nb12_environments": str(int(steps["environments"].min())),
         "nb12_checkpoint": str(checkpoint),
         "nb12_after": str(SUCCESS_AFTER),
@@ -196,19 +196,19 @@ def _answers(results: Path) -> dict[str, str]:
         "nb12_chosen_bar": f"{CHOSEN_BAR:g}",
         "nb12_teachers": str(steps["teacher"].nunique()),
         "nb12_step": _cells(
-            {d: f"{s.candidates.resolution * UNIT_SCALE[d]:g}{UNIT_NAME[d]}" for d, s in DOMAINS.items()}
+            {d: f"{s.candidates.resolution * UNITS[d][1]:g}{UNITS[d][0]}" for d, s in DOMAINS.items()}
         ),
     }
-    for noise, key in ((0.0, "0"), (0.2, "20")):
+    for noise, key in ((0.0, "0"), (FLIPS, "20")):
         at = ig[(ig["noise"] == noise) & (ig["told"] == "kind")].set_index("domain")
         out[f"nb12_kind{key}"] = _cells({d: f"{at.loc[d, 'answers']:g}" for d in DOMAINS})
         out[f"nb12_floor{key}"] = _cells({d: f"{at.loc[d, 'floor']:.1f}" for d in DOMAINS})
         out[f"nb12_ratio{key}"] = _cells({d: f"{at.loc[d, 'ratio']:.2f}" for d in DOMAINS})
         out[f"nb12_bar{key}"] = str(ANSWER_BARS[noise])
-    out["nb12_flips"] = f"{0.2:.0%}".replace("%", " %")
+    out["nb12_flips"] = percent(FLIPS)
     gaps, errors, success, pesi_success, prior = [], {}, {}, {}, {}
     for domain in DOMAINS:
-        scale, unit = UNIT_SCALE[domain], UNIT_NAME[domain]
+        unit, scale, digits = UNITS[domain]
         perfect = task[(task["domain"] == domain) & (task["noise"] == 0.0)]
         uniform = perfect[perfect["query_rule"] == "uniform"]
         final = uniform[(uniform["metric"] == "param_error") & (uniform["episode"] == checkpoint)]
@@ -227,7 +227,7 @@ def _answers(results: Path) -> dict[str, str]:
             f"{share.loc[share['answers'] == checkpoint, 'bayes_answers'].iloc[0]:g}"
         )
         chosen = task[(task["domain"] == domain) & (task["query_rule"] == "information_gain")]
-        for noise, key in ((0.0, "0"), (0.2, "20")):
+        for noise, key in ((0.0, "0"), (FLIPS, "20")):
             at = chosen[(chosen["noise"] == noise) & (chosen["episode"] == SUCCESS_AFTER)]
             rate = at[(at["method"] == "bayes") & (at["metric"] == "success_rate")]["value"].to_numpy()
             margin = verdicts.bootstrap_mean(rate - SUCCESS_BARS[domain])
@@ -243,7 +243,6 @@ def _answers(results: Path) -> dict[str, str]:
         d = verdicts.paired_difference(
             started, metric="param_error", method="bayes_si", baseline="bayes", episode=SUCCESS_AFTER
         )
-        digits = 1 if domain == "wiping" else 2
         prior[domain] = f"{interval(d, unit, digits, scale)}: {verdicts.better(d, lower_is_better=True)}"
     out["nb12_errors"] = _cells(errors)
     out["nb12_gap"] = verdicts.combine(gaps)
@@ -255,10 +254,6 @@ def _answers(results: Path) -> dict[str, str]:
     out.update(_pesi_queries(task))
     out.update(_model_choice(steps, rows))
     return out
-
-
-UNIT_SCALE = {"wiping": 100.0, "pushing": 1.0}
-UNIT_NAME = {"wiping": " cm", "pushing": " kg"}
 
 
 def _pesi_queries(task: pd.DataFrame) -> dict[str, str]:
@@ -303,10 +298,10 @@ def _constant_guess(results: Path) -> dict[str, str]:
         d = verdicts.Difference(
             float(r["minus_middle"]), float(r["minus_middle_low"]), float(r["minus_middle_high"]), int(r["n"])
         )
-        scale, unit = UNIT_SCALE[domain], UNIT_NAME[domain]
+        unit, scale, digits = UNITS[domain]
         out[f"si_osi_{domain}"] = (
             f"{scale * r['error']:.1f} against {scale * r['middle_error']:.1f}{unit}, "
-            f"OSI − middle {interval(d, unit, 1 if domain == 'wiping' else 2, scale)}: {r['beats_middle']}"
+            f"OSI − middle {interval(d, unit, digits, scale)}: {r['beats_middle']}"
         )
     out["si_verdict"] = WORDS[verdicts.combine(list(osi["beats_middle"]))]
     ran = {name: ran_with(results, name) for name in SI_STUDIES}
@@ -334,7 +329,7 @@ def _tau(results: Path) -> dict[str, str]:
         "tau_environments": str(int(environments.min())),
         "tau_regressors": ", ".join(sorted({REGRESSORS[b] for b in table["best_regressor"]})),
         "tau_fitted": " and ".join(REGRESSORS[r] for r in params["regressors"]),
-        "tau_level": f"{COVERAGE:.0%}".replace("%", " %"),
+        "tau_level": percent(COVERAGE),
         "tau_a7_reading": reading(PAPER_A7.n_trajectories, PAPER_A7.loss),
         "tau_more_reading": reading(n_largest, "nll"),
     }
@@ -350,8 +345,8 @@ def _tau(results: Path) -> dict[str, str]:
                 int(environments[domain]),
             )
             held.append(verdicts.better(d, lower_is_better=True))
-            scale, unit = UNIT_SCALE[domain], UNIT_NAME[domain]
-            cells[domain] = f"{interval(d, unit, 1 if domain == 'wiping' else 2, scale)}: {held[-1]}"
+            unit, scale, digits = UNITS[domain]
+            cells[domain] = f"{interval(d, unit, digits, scale)}: {held[-1]}"
             if column:
                 out[f"tau_{key}_coverage_{domain}"] = (
                     f"{calibration.loc[(domain, column), f'coverage_{round(100 * COVERAGE)}']:.2f}"

@@ -155,3 +155,10 @@ def test_a_typed_number_in_a_template_is_found() -> None:
     assert _typed_numbers(allowed) == []
     typed = _typed_numbers(allowed.replace("{n}", "72"))
     assert len(typed) == 1 and "72" in typed[0]
+
+
+def test_every_reading_of_algorithm_4_has_its_name_in_the_readme() -> None:
+    from hipref.learners.sysid import PRETRAIN_LOSSES
+    from hipref.readme_beyond import LOSSES
+
+    assert set(LOSSES) == set(PRETRAIN_LOSSES)
