@@ -173,7 +173,7 @@ CHOSEN_BAR = 1.25
 
 
 def _cells(values: dict[str, str]) -> str:
-    return f"{values['wiping']} (wiping) and {values['pushing']} (pushing)"
+    return f"{values['wiping']} in wiping and {values['pushing']} in pushing"
 
 
 def _answers(results: Path) -> dict[str, str]:
