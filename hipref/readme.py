@@ -5,7 +5,8 @@
 --check` (and `tests/test_readme.py`) fails when a section differs from what `results/` gives. The text
 of a section lives in `hipref/readme_<name>.md`; every number and verdict in it is a placeholder filled by
 `values`, each read from `results/data/` and `results/tables/` and decided by `hipref.verdicts`, as the
-notebooks do.
+notebooks do (the findings on noisy preferences in `hipref.readme_noise`, those beyond the paper in
+`hipref.readme_beyond`).
 """
 
 from __future__ import annotations

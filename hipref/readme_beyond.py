@@ -305,14 +305,15 @@ def _constant_guess(results: Path) -> dict[str, str]:
         )
     out["si_verdict"] = WORDS[verdicts.combine(list(osi["beats_middle"]))]
     ran = {name: ran_with(results, name) for name in SI_STUDIES}
-    readings = {
-        name: reading(p["n_trajectories"], p.get("pretrain_loss", PAPER_A7.loss)) for name, p in ran.items()
-    }
+    readings = {name: reading(p["n_trajectories"], p["pretrain_loss"]) for name, p in ran.items()}
     out["si_reading_02"] = readings["02_r1_pesi"]
     groups: dict[str, list[str]] = {}
     for name, text in readings.items():
         groups.setdefault(text, []).append(name[:2])
-    out["si_studies"] = "; ".join(f"notebooks {', '.join(n)} pretrain OSI {t}" for t, n in groups.items())
+    out["si_studies"] = "; ".join(
+        (f"notebook {n[0]} pretrains" if len(n) == 1 else f"notebooks {', '.join(n)} pretrain") + f" OSI {t}"
+        for t, n in groups.items()
+    )
     out.update(_tau(results))
     return out
 
