@@ -157,10 +157,8 @@ def collected_trajectories(
         cache_dir=cache_dir,
         expect=Expect(
             Trajectories,
-            lambda t: (
-                t.features.shape[:2] == (n_trajectories, data.trajectory_steps)
-                and t.parameters.shape == (n_trajectories,)
-            ),
+            lambda t: t.features.shape[:2] == (n_trajectories, data.trajectory_steps)
+            and t.parameters.shape == (n_trajectories,),
         ),
     )
 
