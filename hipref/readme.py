@@ -5,7 +5,8 @@
 --check` (and `tests/test_readme.py`) fails when a section differs from what `results/` gives. The text
 of a section lives in `hipref/readme_<name>.md`; every number and verdict in it is a placeholder filled by
 `values`, each read from `results/data/` and `results/tables/` and decided by `hipref.verdicts`, as the
-notebooks do.
+notebooks do (the findings on noisy preferences in `hipref.readme_noise`, those beyond the paper in
+`hipref.readme_beyond`).
 """
 
 from __future__ import annotations
@@ -21,50 +22,17 @@ import pandas as pd
 import yaml
 
 from hipref import verdicts
-from hipref.experiments.noise_estimation import overestimate, paper_distance
-from hipref.experiments.r3_copesi import final_difference
-from hipref.experiments.robustness import best_learner, noise_table
+from hipref.envs.gridworld import WipingGrid
+from hipref.intervals import CONFIDENCE
+from hipref.readme_beyond import ran_with
+from hipref.readme_beyond import values as beyond
+from hipref.readme_format import UNITS, WORDS, csv, interval, percent, significant_steps, slope_text
+from hipref.readme_noise import values as noise_values
 from hipref.results import repo_root
-
-WORDS = {
-    "yes": "holds",
-    "no": "no",
-    "no difference detected": "no difference detected",
-    "too few environments to decide": "too few environments to decide",
-}
-"""How each verdict of `hipref.verdicts` reads at the start of a finding."""
 
 SECTIONS: tuple[str, ...] = ("findings", "copesi")
 """The generated sections: each one's text is `hipref/readme_<name>.md`, with a placeholder for every
 number and verdict."""
-
-
-def signed(value: float, digits: int) -> str:
-    """`value` with its sign, as the README writes it (a true minus sign)."""
-    return f"{value:+.{digits}f}".replace("-", "\N{MINUS SIGN}")
-
-
-def interval(d: verdicts.Difference, unit: str, digits: int, scale: float = 1.0) -> str:
-    """'−1.9 cm (CI −2.8 to −1.2)', or without the interval over too few environments to draw one."""
-    mean = f"{signed(scale * d.mean, digits)}{unit}"
-    if d.n < verdicts.MIN_ENVIRONMENTS:
-        return f"{mean}, no interval over {d.n} environments"
-    return f"{mean} (CI {signed(scale * d.low, digits)} to {signed(scale * d.high, digits)})"
-
-
-def slope_text(t: verdicts.Trend, unit: str, digits: int, scale: float) -> str:
-    """A slope with its interval, as `interval` writes a difference."""
-    return interval(verdicts.Difference(t.slope, t.low, t.high, t.n), unit, digits, scale)
-
-
-def significant_steps(table: pd.DataFrame, *, increasing: bool) -> str:
-    """'k of K': the steps whose whole interval lies on the claimed side of zero."""
-    held = (table["low"] > 0) if increasing else (table["high"] < 0)
-    return f"{int(held.sum())} of {len(table)}"
-
-
-def _csv(results: Path, name: str) -> pd.DataFrame:
-    return pd.read_csv(results / name)
 
 
 def _differences(rows: pd.DataFrame, domain: str) -> pd.DataFrame:
@@ -76,12 +44,8 @@ def _differences(rows: pd.DataFrame, domain: str) -> pd.DataFrame:
     return paired.assign(difference=paired["value"] - paired["value_osi"])
 
 
-UNITS = {"wiping": (" cm", 100.0, 1), "pushing": (" kg", 1.0, 2)}
-"""How each domain's parameter error is written: unit, scale from SI units and digits."""
-
-
 def _controllers(results: Path) -> dict[str, str]:
-    rows = _csv(results, "data/05_controllers.csv")
+    rows = csv(results, "data/05_controllers.csv")
     force = rows[rows["metric"] == "force_mean"].groupby(["method", "desired_height"])["value"].mean()
     adm, spd = force["admittance"], force["spd"]
     seeds = rows.loc[rows["metric"] == "force_mean", "seed"].nunique()
@@ -94,7 +58,7 @@ def _controllers(results: Path) -> dict[str, str]:
 
 
 def _feedback(results: Path, root: Path) -> dict[str, str]:
-    rows = _csv(results, "data/01_r1_feedback.csv")
+    rows = csv(results, "data/01_r1_feedback.csv")
     per_seed = rows.pivot_table(index=["method", "seed"], columns="episode", values="value")
     window = min(10, per_seed.shape[1] // 2)
     first = per_seed.iloc[:, :window].mean(axis=1).unstack("method")
@@ -107,6 +71,7 @@ def _feedback(results: Path, root: Path) -> dict[str, str]:
     params = yaml.safe_load((root / "params" / "full" / "01_r1_feedback.yaml").read_text())
     return {
         "fig2c_verdict": WORDS[held],
+        "grid_cells": str(WipingGrid().n_states),
         "window": str(window),
         "demos": f"{params['demos']:,}",
         "tabular_last": f"{last['tabular_coach'].mean():.0f}",
@@ -118,7 +83,7 @@ def _feedback(results: Path, root: Path) -> dict[str, str]:
 
 
 def _pesi(results: Path) -> dict[str, str]:
-    rows = _csv(results, "data/02_r1_pesi.csv")
+    rows = csv(results, "data/02_r1_pesi.csv")
     out: dict[str, str] = {}
     final, over_time = [], []
     for domain, (unit, scale, digits) in UNITS.items():
@@ -142,6 +107,7 @@ def _pesi(results: Path) -> dict[str, str]:
         "truths": str(environments["ground_truth"].nunique()),
         "seeds": str(environments["seed"].nunique()),
         "pesi_episodes": str(int(rows["episode"].max())),
+        "confidence": percent(CONFIDENCE),
         "fig2d_verdict": WORDS[verdicts.combine(final)],
         "time_verdict": WORDS[verdicts.combine(over_time)],
         "ce_verdict": WORDS[verdicts.better(ce, lower_is_better=True)],
@@ -150,10 +116,11 @@ def _pesi(results: Path) -> dict[str, str]:
 
 
 def _noise(results: Path) -> dict[str, str]:
-    rows = _csv(results, "data/03_r2_noise.csv")
+    rows = csv(results, "data/03_r2_noise.csv")
     errors = rows[rows["metric"] == "param_error"]
     out: dict[str, str] = {}
     grows, unlearns = [], []
+    highest = float(rows["noise"].max())
     for domain, (unit, scale, digits) in UNITS.items():
         pesi = errors[(errors["domain"] == domain) & (errors["method"] == "pesi")]
         final = pesi[pesi["episode"] == pesi["episode"].max()]
@@ -162,7 +129,7 @@ def _noise(results: Path) -> dict[str, str]:
         out[f"noise_slope_{domain}"] = slope_text(slope, unit, digits, scale)
         steps = verdicts.steps(final, x="noise", units=("ground_truth", "seed"))
         out[f"noise_steps_{domain}"] = significant_steps(steps, increasing=True)
-        high = _differences(rows[(rows["noise"] == 0.6) | (rows["method"] == "osi")], domain)
+        high = _differences(rows[(rows["noise"] == highest) | (rows["method"] == "osi")], domain)
         over_time = verdicts.trend(high, x="episode", y="difference", units=("ground_truth", "seed"))
         unlearns.append(verdicts.increases(over_time))
         out[f"unlearn_{domain}"] = slope_text(over_time, unit, digits, 100 * scale)
@@ -170,121 +137,15 @@ def _noise(results: Path) -> dict[str, str]:
         **out,
         "noise_verdict": WORDS[verdicts.combine(grows)],
         "unlearn_verdict": WORDS[verdicts.combine(unlearns)],
-    }
-
-
-def _final(
-    rows: pd.DataFrame, domain: str, noise: float, metric: str, baseline: str = "pesi"
-) -> verdicts.Difference:
-    """CO-PESI minus `baseline` at the last evaluation (`final_difference`)."""
-    return verdicts.Difference(*final_difference(rows, domain, noise, metric, baseline=baseline))
-
-
-def _copesi(results: Path) -> dict[str, str]:
-    rows = _csv(results, "data/04_r3_copesi.csv")
-    filters = _csv(results, "tables/04_filter_quality.csv")
-    estimated = _csv(results, "data/06_copesi_estimated.csv")
-    told = _final(estimated, "pushing", 0.1, "param_error", baseline="co_pesi_estimated")
-    return {
-        "co_w20": interval(_final(rows, "wiping", 0.2, "param_error"), " cm", 2, 100.0),
-        "co_w30": interval(_final(rows, "wiping", 0.3, "param_error"), " cm", 2, 100.0),
-        "co_w30_success": signed(_final(rows, "wiping", 0.3, "success_rate").mean, 2),
-        "co_p30_success": interval(_final(rows, "pushing", 0.3, "success_rate"), "", 2),
-        "precision_low": f"{filters['filter_precision'].min():.2f}",
-        "precision_high": f"{filters['filter_precision'].max():.2f}",
-        "recall_low": f"{filters['filter_recall'].min():.2f}",
-        "recall_high": f"{filters['filter_recall'].max():.2f}",
-        "chance_low": f"{filters['noise'].min():.1f}",
-        "chance_high": f"{filters['noise'].max():.1f}",
-        "estimated_p10": interval(told, " kg", 3),
-    }
-
-
-def _flip_rates(results: Path) -> dict[str, str]:
-    table = _csv(results, "tables/06_noise_rate_estimators.csv")
-    out = {}
-    for method, name in (("marginal_likelihood", "likelihood"), ("repeated_pair", "repeated")):
-        levels = table[table["method"] == method]
-        worst = levels.loc[levels["bias"].abs().idxmax()]
-        d = verdicts.Difference(worst["bias"], worst["bias_low"], worst["bias_high"], int(worst["datasets"]))
-        out[f"{name}_bias"] = interval(d, "", 3)
-        out[f"{name}_level"] = f"{worst['true_noise']:.2f}"
-        out["levels_low"] = f"{levels['true_noise'].min():.1f}"
-        out["levels_high"] = f"{levels['true_noise'].max():.1f}"
-    return out
-
-
-LEARNERS = {
-    "co_pesi_likelihood": "co-teaching with the likelihood rate",
-    "pesi_smoothed": "label smoothing",
-    "pesi_unbiased": "the unbiased loss",
-    "pesi_small_loss": "the small-loss filter",
-    "pesi_rime": "RIME's trust-and-flip",
-}
-"""How the README names notebook 11's learners."""
-
-TIMES = {0: "never", 1: "once", 2: "twice"}
-
-
-def _robust(results: Path) -> dict[str, str]:
-    table = _csv(results, "tables/11_teachers_and_robustness.csv")
-    settings = table[["domain", "teacher"]].drop_duplicates()
-    held, significant = [], []
-    ahead: dict[str, float] = {}
-    for domain, teacher in settings.itertuples(index=False):
-        learner, verdict, _ = best_learner(table, domain, teacher)
-        held.append(verdict)
-        error = table[(table["domain"] == domain) & (table["teacher"] == teacher)]
-        error = error[(error["method"] == learner) & (error["metric"] == "param_error")].iloc[0]
-        ahead[domain] = max(ahead.get(domain, 0.0), -float(error["mean"]))
-        d = verdicts.Difference(error["mean"], error["low"], error["high"], int(error["n"]))
-        if verdicts.better(d, lower_is_better=True) == "yes":
-            unit, scale, digits = (" mm", 1000.0, 2) if domain == "wiping" else (" kg", 1.0, 3)
-            setting = f"{LEARNERS[learner]} under the {teacher} teacher, {domain}"
-            significant.append(f"{setting}: {interval(d, unit, digits, scale)}")
-    noise = noise_table(_csv(results, "data/11_teachers_and_robustness.csv"))
-    myopic = noise[noise["teacher"] == "myopic"].set_index("domain")["bias"]
-    return {
-        "robust_verdict": WORDS[verdicts.any_of(held)],
-        "robust_teachers": str(table["teacher"].nunique()),
-        "robust_learners": str(table["method"].nunique()),
-        "robust_environments": str(int(table["n"].min())),
-        "robust_both": f"{held.count('yes')} of {len(held)}",
-        "robust_ahead_wiping": f"{1000 * ahead['wiping']:.1f}",
-        "robust_ahead_pushing": f"{ahead['pushing']:.2f}",
-        "robust_times": TIMES.get(len(significant), f"{len(significant)} times"),
-        "robust_significant": "; ".join(significant),
-        "myopic_wiping": signed(myopic["wiping"], 3),
-        "myopic_pushing": signed(myopic["pushing"], 3),
-    }
-
-
-def _table3(results: Path) -> dict[str, str]:
-    rows = _csv(results, "data/06_noise_estimation.csv")
-    table = _csv(results, "tables/table3.csv")
-    means = {}
-    for conflict in ("same_pair", "no_common_parameter"):
-        mean, low, high = overestimate(rows, method=f"algorithm5_{conflict}")
-        means[conflict] = verdicts.Difference(mean, low, high, int((rows["metric"] == "true_noise").sum()))
-    same = means["same_pair"]
-    listed = table[table["paper_estimated_noise"].notna()]
-    miss = (listed["estimated_noise_same_pair"] - listed["paper_estimated_noise"]).abs()
-    worst = listed.loc[miss.idxmax()]
-    return {
-        "alg5_verdict": WORDS[verdicts.within(same, 0.04, 0.08)],
-        "alg5_same_pair": f"{signed(100 * same.mean, 1)} % (CI {100 * same.low:.1f}-{100 * same.high:.1f})",
-        "alg5_common": f"{signed(100 * means['no_common_parameter'].mean, 1)} %",
-        "alg5_distance": f"{paper_distance(table)['same_pair']:.3f}",
-        "alg5_miss": signed(worst["estimated_noise_same_pair"] - worst["paper_estimated_noise"], 3),
-        "alg5_miss_level": f"{worst['true_noise']:.2f}",
+        "unlearn_level": percent(highest),
     }
 
 
 def _readings(results: Path) -> dict[str, str]:
     """Notebook 08's readings and the pushing gain's first significant checkpoint in notebook 02."""
-    table = _csv(results, "tables/08_si_sensitivity.csv")
+    table = csv(results, "tables/08_si_sensitivity.csv")
     readings = table[table["variant"] != "previous_design"]
-    rows = _csv(results, "data/08_si_sensitivity.csv")
+    rows = csv(results, "data/08_si_sensitivity.csv")
     out = {
         "readings_episodes": str(int(rows["episode"].max())),
         "readings_environments": str(
@@ -298,16 +159,19 @@ def _readings(results: Path) -> dict[str, str]:
         out[f"readings_{domain}_names"] = ", ".join(wins["variant"]) or "none"
         co = table[(table["domain"] == domain) & (table["copesi_minus_pesi_high"] < 0)]
         out[f"readings_copesi_{domain}"] = str(len(co))
-    curve = _csv(results, "tables/02_pesi_minus_osi.csv")
+    curve = csv(results, "tables/02_pesi_minus_osi.csv")
     pushing = curve[(curve["domain"] == "pushing") & (curve["metric"] == "param_error") & (curve["high"] < 0)]
     out["pushing_first"] = str(int(pushing["episode"].min()))
-    noise = _csv(results, "data/03_r2_noise.csv")
+    noise = csv(results, "data/03_r2_noise.csv")
     final = noise[
         (noise["method"] == "pesi") & (noise["metric"] == "param_error") & (noise["domain"] == "wiping")
     ]
     final = final[final["episode"] == final["episode"].max()].groupby("noise")["value"].mean()
     out["noise_episodes"] = str(int(noise["episode"].max()))
-    out["noise_w0"], out["noise_w30"] = f"{100 * final[0.0]:.1f}", f"{100 * final[0.3]:.1f}"
+    highest = float(csv(results, "tables/04_filter_quality.csv")["noise"].max())
+    out["noise_w0"], out["noise_w_high"] = f"{100 * final[0.0]:.1f}", f"{100 * final[highest]:.1f}"
+    out["noise_lowest"] = percent(0.0)
+    out["readings_noise"] = percent(ran_with(results, "08_si_sensitivity")["noise"])
     return out
 
 
@@ -318,11 +182,9 @@ def values(results: Path, root: Path) -> dict[str, str]:
         **_feedback(results, root),
         **_pesi(results),
         **_noise(results),
-        **_copesi(results),
-        **_flip_rates(results),
-        **_robust(results),
         **_readings(results),
-        **_table3(results),
+        **noise_values(results),
+        **beyond(results),
     }
 
 

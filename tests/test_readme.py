@@ -123,3 +123,42 @@ def test_the_check_of_profile_values_reads_every_kind_of_documentation() -> None
     # Notebook 01's seeds are documented in its parameters cell and in R1Config's docstring.
     found = {(where.split()[-1], name, profile) for where, name, profile, _ in _documented(NOTEBOOKS[0])}
     assert ("parameter", "seeds", "full") in found and ("R1Config.seeds", "seeds", "full") in found
+
+
+ALLOWED_DIGITS = re.compile(
+    r"`[^`]*`"  # file names: results/tables/08_si_sensitivity.csv
+    r"|\(Figs?\. [^)]*\)|Table 3|Eq\. \d|A\.\d|Algorithm \d"  # the paper: figures, tables, equations
+    r"|[Nn]otebooks? \d\d(?:-\d\d)?(?:, \d\d)*"  # the study's notebooks
+    r"|per 100 episodes"  # the unit of a slope over the episodes
+)
+"""What a findings template may write in digits: references to the paper and to the study's notebooks and
+files, and units. Every other number is a placeholder filled from `results/`."""
+
+
+def _typed_numbers(template: str) -> list[str]:
+    """The digits of a template outside its placeholders, the allowed references and each table row's first
+    cell (the paper's claim, quoted)."""
+    text = re.sub(r"\{[a-z0-9_]+\}", "", template)
+    text = re.sub(r"^\| [^|]* \|", "|", text, flags=re.M)
+    text = ALLOWED_DIGITS.sub("", text)
+    return [m.group(0) for m in re.finditer(r".{0,30}\d.{0,10}", text)]
+
+
+@pytest.mark.parametrize("name", readme.SECTIONS)
+def test_the_findings_templates_type_no_number(name: str) -> None:
+    template = (ROOT / "hipref" / f"readme_{name}.md").read_text(encoding="utf-8")
+    assert _typed_numbers(template) == []
+
+
+def test_a_typed_number_in_a_template_is_found() -> None:
+    allowed = "| claim at 10 % (Fig. 2c) | {verdict}: notebook 02's {n} cells (Eq. 2, `12_task.csv`) |"
+    assert _typed_numbers(allowed) == []
+    typed = _typed_numbers(allowed.replace("{n}", "72"))
+    assert len(typed) == 1 and "72" in typed[0]
+
+
+def test_every_reading_of_algorithm_4_has_its_name_in_the_readme() -> None:
+    from hipref.learners.sysid import PRETRAIN_LOSSES
+    from hipref.readme_beyond import LOSSES
+
+    assert set(LOSSES) == set(PRETRAIN_LOSSES)
