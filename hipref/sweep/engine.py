@@ -262,6 +262,12 @@ def _check_sweep_input(fn: CellFn, cells: Sequence[Any], workers: Any) -> None:
             check_field_types(cell)
 
 
+def _shows_bars() -> bool:
+    """A progress bar for a terminal or a notebook; none when stderr goes to a file or a pipe, where each
+    update would only lengthen one line."""
+    return sys.stderr.isatty() or type(sys.stderr).__module__.startswith("ipykernel")
+
+
 def run_sweep(
     fn: CellFn,
     cells: Sequence[Any],
@@ -301,7 +307,9 @@ def run_sweep(
 
     failures: dict[str, str] = {}
     initial = len(cells) - sum(count[key] for key in pending)
-    with tqdm(total=len(cells), initial=initial, desc=desc, unit="cell", file=sys.stderr) as bar:
+    with tqdm(
+        total=len(cells), initial=initial, desc=desc, unit="cell", file=sys.stderr, disable=not _shows_bars()
+    ) as bar:
         if pending:
             address = scheduler or os.environ.get("HIPREF_DASK_SCHEDULER")
             if address:
