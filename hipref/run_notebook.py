@@ -228,7 +228,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="write it as committed: no injected-parameters cell, cells numbered from 1",
     )
     parser.add_argument("--kernel", default=KERNEL, help=f"Jupyter kernel name (default {KERNEL})")
-    parser.add_argument("--no-progress-bar", action="store_true", help="no progress bar on stderr")
+    parser.add_argument(
+        "--no-progress-bar",
+        action="store_true",
+        help="no progress bar on stderr (there is none when stderr is no terminal)",
+    )
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, _terminate)
     overrides = {name: yaml.safe_load(value) for name, value in args.parameter}
@@ -240,7 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             parameters,
             committed=args.committed,
             kernel=args.kernel,
-            progress_bar=not args.no_progress_bar,
+            progress_bar=not args.no_progress_bar and sys.stderr.isatty(),  # no overlong line in a log
         )
     except BaseException:
         end_descendants()  # Ctrl-C interrupts the kernel's cell but leaves the kernel running

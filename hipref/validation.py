@@ -15,10 +15,39 @@ def is_number(value: object) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+SCALAR_KINDS: dict[type, tuple[str, Any]] = {
+    float: ("a number", is_number),
+    int: ("an integer", lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool)),
+    bool: ("True or False", lambda v: isinstance(v, bool)),
+    str: ("a string", lambda v: isinstance(v, str)),
+}
+"""The field annotations `check_field_types` checks, each with what it asks for and its test."""
+
+
+def check_field_types(obj: Any) -> None:
+    """Raise ValueError naming the field unless every field of the dataclass `obj` annotated `float`, `int`,
+    `bool` or `str` holds a value of that kind (an integer is a number; a bool or a string that would
+    convert is none), so a cell or config with a value of the wrong kind fails where it is made or swept,
+    not deep inside the compute. Fields with other annotations are left to the class's own checks."""
+    try:
+        hints = typing.get_type_hints(type(obj))
+    except NameError:  # an annotation only a type checker resolves: nothing to check by
+        return
+    for field in dataclasses.fields(obj):
+        kind = SCALAR_KINDS.get(hints.get(field.name))  # type: ignore[arg-type]
+        value = getattr(obj, field.name)
+        if kind is not None and not kind[1](value):
+            raise ValueError(
+                f"{type(obj).__name__}.{field.name} must be {kind[0]}, got {value!r} ({type(value).__name__})"
+            )
+
+
 def check_grids(config: Any) -> None:
     """Raise ValueError naming the field unless every `tuple[X, ...]` field of the dataclass `config` holds
     a tuple or list (not a scalar or a string, whose characters would be taken for its items) of distinct
-    items: a repeated value would run the same cells twice and fail only when their rows are combined."""
+    items: a repeated value would run the same cells twice and fail only when their rows are combined;
+    and every scalar field a value of its annotated kind (`check_field_types`)."""
+    check_field_types(config)
     hints = typing.get_type_hints(type(config))
     for field in dataclasses.fields(config):
         hint = hints[field.name]

@@ -96,22 +96,24 @@ def test_a_step_before_reset_is_refused(make: type[gym.Env]) -> None:
 def test_a_push_after_the_episode_terminated_is_refused() -> None:
     env = PushingEnv()
     env.reset(seed=0, options={"param": 12.0})
-    *_, terminated, truncated, _ = env.step(np.array([12.0]))
+    *_, terminated, truncated, info = env.step(env.action_for(12.0))
     assert terminated and not truncated
+    assert info["estimate"] == pytest.approx(12.0)  # the normalised action stood for 12 kg
     with pytest.raises(gym.error.ResetNeeded, match=r"after the episode ended .*call reset\(\)"):
-        env.step(np.array([12.0]))
+        env.step(env.action_for(12.0))
     # A new episode steps again.
     env.reset(seed=1)
-    env.step(np.array([12.0]))
+    env.step(env.action_for(12.0))
 
 
 def test_a_stroke_after_truncation_is_refused() -> None:
     env = DeskWipingEnv(max_strokes=1)
     env.reset(seed=0, options={"param": 0.7})
-    *_, terminated, truncated, _ = env.step(np.array([0.05, 0.05, 0.7]))
+    *_, terminated, truncated, info = env.step(env.action_for(0.05, 0.05, 0.7))
     assert truncated and not terminated
+    assert info["goal"] == pytest.approx((0.05, 0.05)) and info["estimate"] == pytest.approx(0.7)
     with pytest.raises(gym.error.ResetNeeded, match=r"after the episode ended .*call reset\(\)"):
-        env.step(np.array([0.05, 0.05, 0.7]))
+        env.step(env.action_for(0.05, 0.05, 0.7))
 
 
 def test_a_failed_reset_leaves_no_episode_to_step() -> None:
@@ -120,4 +122,4 @@ def test_a_failed_reset_leaves_no_episode_to_step() -> None:
     with pytest.raises(ValueError, match="cube mass must be a finite number"):
         env.reset(seed=0, options={"param": 100.0})
     with pytest.raises(gym.error.ResetNeeded, match="before reset"):
-        env.step(np.array([12.0]))
+        env.step(env.action_for(12.0))

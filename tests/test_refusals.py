@@ -12,7 +12,7 @@ import pytest
 
 import hipref  # noqa: F401 - registers the environments
 from hipref.envs.pushing import PushingConfig, PushingTask
-from hipref.experiments.controllers import ControllersConfig
+from hipref.experiments.controllers import AblationCell, ControllersConfig, CurveCell
 from hipref.experiments.r2_noise import R2Config
 from hipref.experiments.r3_copesi import R3Config
 from hipref.learners.coteaching import CoPESILearner
@@ -46,6 +46,27 @@ CASES: dict[str, tuple[Callable[[], object], str]] = {
     ),
     # A float label where the integer -1 or 1 is meant.
     "float label": (lambda: preference_label_vector(1.0, 2), r"integer -1 or 1, got 1.0 \(float\)"),
+    # A truth outside the parameter's range: the teacher would prefer the range's end whatever it is shown.
+    "teacher truth out of range": (
+        lambda: ScriptedPreferenceTeacher(5.0, 0.1, np.random.default_rng(0), bounds=(0.5, 0.9)),
+        r"true_parameter must be a finite number in \[0.5, 0.9\], got 5.0",
+    ),
+    "teacher truth a bool": (
+        lambda: ScriptedPreferenceTeacher(True, 0.1, np.random.default_rng(0)),  # type: ignore[arg-type]
+        r"true_parameter must be a finite number, got True",
+    ),
+    # Cells of notebook 05's sweeps, refused when made instead of failing in numpy or in the controller.
+    "unknown curve domain": (lambda: CurveCell("wipe", 0.0, 0), r"domain must be one of .* got 'wipe'"),
+    "curve error beyond the range": (
+        lambda: CurveCell("wiping", 1.0, 0),
+        r"error must be a finite number in \[-0.4, 0.4\], got 1.0",
+    ),
+    "string curve error": (lambda: CurveCell("pushing", "2", 0), r"error must be .* got '2'"),  # type: ignore[arg-type]
+    "float curve seed": (lambda: CurveCell("pushing", 2.0, 1.5), r"seed must be an integer >= 0, got 1.5"),  # type: ignore[arg-type]
+    "unknown ablation controller": (
+        lambda: AblationCell("pid", 0.81, 0.75, 6, 0),
+        r"method must be one of \['admittance', 'spd'\], got 'pid'",
+    ),
 }
 
 
@@ -70,6 +91,38 @@ def test_a_sweep_refuses_bad_workers_and_functions_before_any_cell_runs(
     with pytest.raises(ValueError, match=message):
         run_sweep(fn, [ToyCell(seed=0, log_dir=str(tmp_path))], cache_dir=False, workers=workers)  # type: ignore[arg-type]
     assert executions(tmp_path) == []
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("seed", "0", r"ToyCell.seed must be an integer, got '0' \(str\)"),
+        ("noise", True, r"ToyCell.noise must be a number, got True \(bool\)"),
+        ("method", 3, r"ToyCell.method must be a string, got 3 \(int\)"),
+    ],
+)
+def test_a_swept_cell_with_a_value_of_the_wrong_kind_is_refused_before_any_cell_runs(
+    tmp_path: Path, field: str, value: object, message: str
+) -> None:
+    good = ToyCell(seed=0, log_dir=str(tmp_path))
+    bad = ToyCell(**{"seed": 1, "log_dir": str(tmp_path), field: value})  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=message):
+        run_sweep(toy_cell, [good, bad], cache_dir=False, workers=1)
+    assert executions(tmp_path) == []
+
+
+@pytest.mark.parametrize("env_id", ["hipref/DeskWiping-v0", "hipref/Pushing-v0"])
+@pytest.mark.parametrize("action", [None, "a", [True], np.zeros(7), [[0.0], [0.0, 0.0]]])
+def test_an_action_that_is_no_vector_of_numbers_of_the_spaces_size_is_refused_naming_it(
+    env_id: str, action: object
+) -> None:
+    env = gym.make(env_id).unwrapped
+    env.reset(seed=0)
+    n = env.action_space.shape[0]
+    with pytest.raises(
+        ValueError, match=rf"action must be {n} finite number\(s\) in \[-1, 1\] \(.*estimate\), got "
+    ):
+        env.step(action)
 
 
 def test_a_push_before_reset_is_refused() -> None:

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from hipref import sweep
-from hipref.sweep import SweepError, cached_artefact, cell_key, run_sweep
+from hipref.sweep import SweepError, cached_artefact, cell_key, engine, run_sweep
 from hipref.sweep.cache import NOT_IN_ROWS, without_docstrings
 from tests._sweep_cells import (
     ThreadsCell,
@@ -52,11 +52,19 @@ def log_dir(tmp_path: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def dask_address() -> Iterator[str]:
+def dask_address(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A two-worker local cluster whose scratch space (with its lock files) is a pytest temporary folder,
+    not Dask's default folder under the system's temporary directory, which no test may leave files in."""
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-    ) as cluster:
+    import dask
+
+    scratch = tmp_path_factory.mktemp("dask")
+    with (
+        dask.config.set({"temporary-directory": str(scratch)}),
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+        ) as cluster,
+    ):
         yield cluster.scheduler_address
 
 
@@ -71,7 +79,10 @@ def _isolated(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
 
 
 def test_rows_are_identical_on_every_backend_and_follow_cell_order(
-    dask_address: str, log_dir: Path, monkeypatch: pytest.MonkeyPatch
+    dask_address: str,
+    log_dir: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path_factory: pytest.TempPathFactory,
 ) -> None:
     cells = grid(log_dir)
     one = run_sweep(toy_cell, cells, cache_dir=False, workers=1)
@@ -94,7 +105,16 @@ def test_rows_are_identical_on_every_backend_and_follow_cell_order(
     distributed = pytest.importorskip("distributed")
     with distributed.Client(dask_address) as client:
         worker_pids = set(client.run(os.getpid).values())
+        scratch = set(client.run(lambda dask_worker: dask_worker.local_directory).values())
     assert executing_pids(env_log) <= worker_pids
+    # The workers' scratch space, lock files and all, lies in pytest's temporary folder.
+    assert all(Path(folder).is_relative_to(tmp_path_factory.getbasetemp()) for folder in scratch), scratch
+
+
+def test_no_progress_bar_is_written_when_stderr_is_no_terminal(capsys: pytest.CaptureFixture[str]) -> None:
+    # In a log file each update would only lengthen one line.
+    run_sweep(toy_cell, grid(), cache_dir=False, workers=1)
+    assert capsys.readouterr().err == ""
 
 
 def test_cells_run_single_threaded_in_workers_and_in_process() -> None:
@@ -127,7 +147,10 @@ def test_second_run_recomputes_nothing(tmp_path: Path, log_dir: Path, workers: i
     assert second.to_csv() == first.to_csv()
 
 
-def test_progress_counts_cached_cells_as_done(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_progress_counts_cached_cells_as_done(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(engine, "_shows_bars", lambda: True)  # as on a terminal
     cells = grid()
     run_sweep(toy_cell, cells[:4], cache_dir=tmp_path, workers=1, desc="first")
     capsys.readouterr()

@@ -4,7 +4,11 @@ Both are goal-level environments: one `step` runs the low-level policy pi^l (adm
 whole stroke or push, at the simulator's 2 ms time step, given the agent's estimate of the unknown
 parameter. `reset(seed=..., options={"param": value})` sets the unknown parameter (desk height in m, cube
 mass in kg); it is drawn uniformly from its range when absent. Stepping before the first `reset`, or after
-the episode terminated or was truncated, raises `gymnasium.error.ResetNeeded`."""
+the episode terminated or was truncated, raises `gymnasium.error.ResetNeeded`.
+
+Actions are normalised, as gymnasium's checker asks: each entry in [-1, 1] stands for its physical range
+linearly (-1 its low end, 1 its high end); `env.action_for(...)` turns physical values into an action and
+`info` reports the physical values a step used. Observations are any finite float32 values."""
 
 from __future__ import annotations
 
@@ -51,13 +55,45 @@ def _check_running(env: gym.Env, episode_over: bool | None) -> None:
         )
 
 
-def _checked_action(space: gym.spaces.Box, action: Any) -> np.ndarray:
-    action = np.asarray(action, dtype=np.float64).reshape(space.shape)
-    if not np.all(np.isfinite(action)):
-        raise ValueError(f"action must be finite, got {action!r}")
-    if np.any(action < space.low) or np.any(action > space.high):
-        raise ValueError(f"action must lie in [{space.low}, {space.high}], got {action!r}")
-    return action
+FINITE_FLOAT32 = float(np.finfo(np.float32).max)
+"""The observation spaces' bound: an observation is finite, nothing more is promised of a force or speed."""
+
+
+def _observation_space(size: int) -> gym.spaces.Box:
+    return gym.spaces.Box(-FINITE_FLOAT32, FINITE_FLOAT32, shape=(size,), dtype=np.float32)
+
+
+class _NormalisedActions:
+    """An action space [-1, 1]^n standing for the physical box [low, high] entry by entry."""
+
+    def __init__(self, low: np.ndarray, high: np.ndarray, meaning: str) -> None:
+        self.low, self.high, self.meaning = low, high, meaning
+        self.space = gym.spaces.Box(-1.0, 1.0, shape=low.shape, dtype=np.float64)
+
+    def physical(self, action: Any) -> np.ndarray:
+        """The physical values of `action`; ValueError naming it unless it holds n finite numbers in [-1, 1]
+        (a string, bool or None is no number, and is not converted)."""
+        n = self.low.size
+        try:
+            values = np.asarray(action)
+            ok = values.dtype.kind in "iuf" and values.size == n
+        except (TypeError, ValueError):  # ragged nesting
+            ok = False
+        if not ok:
+            raise ValueError(
+                f"action must be {n} finite number(s) in [-1, 1] ({self.meaning}), got {action!r}"
+            )
+        values = values.astype(np.float64).reshape(self.low.shape)
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"action must be finite, got {action!r}")
+        if np.any(np.abs(values) > 1.0):
+            raise ValueError(f"action must lie in [-1, 1] ({self.meaning}), got {action!r}")
+        return self.low + (values + 1.0) / 2.0 * (self.high - self.low)
+
+    def action(self, *physical: float) -> np.ndarray:
+        """The action standing for `physical` (one value per entry, in the entries' units)."""
+        values = np.array(physical, dtype=np.float64)
+        return 2.0 * (values - self.low) / (self.high - self.low) - 1.0
 
 
 class DeskWipingEnv(gym.Env):
@@ -66,11 +102,13 @@ class DeskWipingEnv(gym.Env):
     Observation (float32, 21 = FEATURES_PER_PERIOD): joint positions (6, rad), joint velocities (6, rad/s),
     wrist force on the sponge (3, N, world frame), the joint reference SPD tracks (6, rad), at the end of
     the last step.
-    Action (3): goal x, goal y on the desk (m, inside the wiping area) and the desk-height estimate (m).
+    Action (3, normalised to [-1, 1]): goal x, goal y on the desk (m, over the wiping area) and the
+    desk-height estimate (m, over the height range); `action_for(x, y, estimate)` makes one.
     Reward: 1 for a successful stroke (goal reached with the contact force in the safe band for most of
     the way), else 0. An episode is truncated after `max_strokes` strokes.
     Info: `contact_force` (mean normal force of the stroke, N), `force_max` (N), `in_band` (fraction of
-    the stroke in the safe band), `reached`, `success`, `param` (the true desk height, m)."""
+    the stroke in the safe band), `reached`, `success`, `param` (the true desk height, m), `goal` (m) and
+    `estimate` (m), the action's physical values."""
 
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
     action_space: gym.spaces.Box
@@ -81,16 +119,19 @@ class DeskWipingEnv(gym.Env):
         self.task = WipingTask(config)
         cfg = self.task.config
         self.max_strokes = max_strokes
-        self.observation_space = gym.spaces.Box(
-            -np.inf, np.inf, shape=(FEATURES_PER_PERIOD,), dtype=np.float32
-        )
+        self.observation_space = _observation_space(FEATURES_PER_PERIOD)
         low = np.array([cfg.area_x[0], cfg.area_y[0], cfg.height_range[0]])
         high = np.array([cfg.area_x[1], cfg.area_y[1], cfg.height_range[1]])
-        self.action_space = gym.spaces.Box(low, high, dtype=np.float64)
+        self._actions = _NormalisedActions(low, high, "goal x, goal y, desk-height estimate")
+        self.action_space = self._actions.space
         self._strokes = 0
         self._observation = np.zeros(FEATURES_PER_PERIOD, dtype=np.float32)
         self._episode_over: bool | None = None
         """None outside an episode (before the first successful reset); else whether it has ended."""
+
+    def action_for(self, goal_x: float, goal_y: float, estimate: float) -> np.ndarray:
+        """The normalised action of a stroke to (goal_x, goal_y) (m) under the desk-height `estimate` (m)."""
+        return self._actions.action(goal_x, goal_y, estimate)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -107,7 +148,7 @@ class DeskWipingEnv(gym.Env):
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         _check_running(self, self._episode_over)
-        goal_x, goal_y, estimate = _checked_action(self.action_space, action)
+        goal_x, goal_y, estimate = self._actions.physical(action)
         self._episode_over = True  # until the stroke completes: a failed one leaves no episode to go on with
         stroke = self.task.stroke(np.array([goal_x, goal_y]), float(estimate))
         self._strokes += 1
@@ -119,6 +160,8 @@ class DeskWipingEnv(gym.Env):
             "reached": stroke.reached,
             "success": stroke.success,
             "param": self.task.height,
+            "goal": (float(goal_x), float(goal_y)),
+            "estimate": float(estimate),
         }
         truncated = self._strokes >= self.max_strokes
         self._episode_over = truncated
@@ -130,10 +173,11 @@ class PushingEnv(gym.Env):
 
     Observation (float32, 16): cube position on the desk (2, m), goal position (2, m), joint positions
     (6, rad), joint velocities (6, rad/s).
-    Action (1): the cube-mass estimate (kg) the push is planned with. One step is one push; the episode
-    then terminates. Reward: 1 when the cube rests within the goal tolerance, else 0.
+    Action (1, normalised to [-1, 1] over the mass range): the cube-mass estimate (kg) the push is planned
+    with; `action_for(estimate)` makes one. One step is one push; the episode then terminates.
+    Reward: 1 when the cube rests within the goal tolerance, else 0.
     Info: `final_error` (m, distance from cube to goal), `contact_force` (largest push force at the wrist,
-    N), `success`, `param` (the true cube mass, kg)."""
+    N), `success`, `param` (the true cube mass, kg), `estimate` (kg), the action's physical value."""
 
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's convention
     action_space: gym.spaces.Box
@@ -142,10 +186,11 @@ class PushingEnv(gym.Env):
         _check_config(config, PushingConfig)
         self.task = PushingTask(config)
         cfg = self.task.config
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(16,), dtype=np.float32)
-        self.action_space = gym.spaces.Box(
-            np.array([cfg.mass_range[0]]), np.array([cfg.mass_range[1]]), dtype=np.float64
+        self.observation_space = _observation_space(16)
+        self._actions = _NormalisedActions(
+            np.array([cfg.mass_range[0]]), np.array([cfg.mass_range[1]]), "cube-mass estimate"
         )
+        self.action_space = self._actions.space
         self._episode_over: bool | None = None
         """None outside an episode (before the first successful reset); else whether it has ended."""
 
@@ -156,6 +201,10 @@ class PushingEnv(gym.Env):
         return np.concatenate([cube, self.task.goal, d.qpos[scene.arm_qpos], d.qvel[scene.arm_dof]]).astype(
             np.float32
         )
+
+    def action_for(self, estimate: float) -> np.ndarray:
+        """The normalised action of a push planned with the cube-mass `estimate` (kg)."""
+        return self._actions.action(estimate)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -170,7 +219,7 @@ class PushingEnv(gym.Env):
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         _check_running(self, self._episode_over)
-        (estimate,) = _checked_action(self.action_space, action)
+        (estimate,) = self._actions.physical(action)
         self._episode_over = True  # one push per episode, and a failed push voids it
         push = self.task.push(float(estimate))
         forces = np.linalg.norm(push.features[:, WRIST_FORCE], axis=1)
@@ -179,5 +228,6 @@ class PushingEnv(gym.Env):
             "contact_force": float(forces.max()),
             "success": push.success,
             "param": self.task.mass,
+            "estimate": float(estimate),
         }
         return self._observe(), float(push.success), True, False, info

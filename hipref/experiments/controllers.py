@@ -23,7 +23,7 @@ from hipref.experiments.domains import domain_spec
 from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
 from hipref.sweep import run_sweep
-from hipref.validation import check_int, check_range
+from hipref.validation import check_choice, check_int, check_range
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,13 @@ class AblationCell:
     trajectory_goals: int
     seed: int
 
+    def __post_init__(self) -> None:
+        check_choice("method", self.method, ("spd", "admittance"))
+        check_range("desk_height", self.desk_height, 0.5, 0.9)
+        check_range("desired_height", self.desired_height, 0.5, 0.9)
+        check_int("trajectory_goals", self.trajectory_goals, 1, 100)
+        check_int("seed", self.seed, 0)
+
 
 @dataclass(frozen=True)
 class CurveCell:
@@ -109,6 +116,12 @@ class CurveCell:
     domain: str
     error: float
     seed: int
+
+    def __post_init__(self) -> None:
+        phi = domain_spec(self.domain).candidates
+        # Beyond the range's width no true parameter leaves the estimate inside the range.
+        check_range("error", self.error, phi.low - phi.high, phi.high - phi.low)
+        check_int("seed", self.seed, 0)
 
 
 def _rows(domain: str, method: str, seed: int, metrics: dict[str, float], **extra: float) -> pd.DataFrame:

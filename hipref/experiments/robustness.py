@@ -182,6 +182,7 @@ def run_teacher_noise(cell: TeacherNoiseCell) -> pd.DataFrame:
             np.random.default_rng(teacher_seq),
             TeacherModel(cell.teacher),
             scale=phi.high - phi.low,
+            bounds=(phi.low, phi.high),
         )
         h = cell.data.history
         clips = learning_clips(

@@ -425,7 +425,12 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         task = make_task(cell.domain, cell.data.low_level)
         phi = domain_spec(cell.domain).candidates
         teacher = ScriptedPreferenceTeacher(
-            truth, cell.noise, np.random.default_rng(teacher_seq), cell.teacher, scale=phi.high - phi.low
+            truth,
+            cell.noise,
+            np.random.default_rng(teacher_seq),
+            cell.teacher,
+            scale=phi.high - phi.low,
+            bounds=(phi.low, phi.high),
         )
         learner = make_learner(cell, model, integer_seed(learner_seq))
         learn_rng = np.random.default_rng(learn_seq)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import dataclasses
 import multiprocessing
 import multiprocessing.connection
 import os
@@ -41,6 +42,7 @@ from hipref.sweep.cache import (
     store_cell,
 )
 from hipref.sweep.entries import check_writable
+from hipref.validation import check_field_types
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -246,15 +248,24 @@ def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str, cache_dir: Cach
                 yield futures[future], False, traceback.format_exc()
 
 
-def _check_sweep_input(fn: CellFn, workers: Any) -> None:
+def _check_sweep_input(fn: CellFn, cells: Sequence[Any], workers: Any) -> None:
     """Refuse, before any compute, a `workers` that is no whole number of at least 1, and an `fn` that
     workers cannot import by name (a lambda or a nested function, which would also share a cache key with
-    any other of its name)."""
+    any other of its name), and a cell whose field holds a value of the wrong kind (`check_field_types`)."""
     if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
         raise ValueError(f"workers must be an integer at least 1 or None, got {workers!r}")
     name = getattr(fn, "__qualname__", None)
     if not callable(fn) or name is None or "<" in name:
         raise ValueError(f"fn must be a module-level function (workers import it by name), got {fn!r}")
+    for cell in cells:
+        if dataclasses.is_dataclass(cell):
+            check_field_types(cell)
+
+
+def _shows_bars() -> bool:
+    """A progress bar for a terminal or a notebook; none when stderr goes to a file or a pipe, where each
+    update would only lengthen one line."""
+    return sys.stderr.isatty() or type(sys.stderr).__module__.startswith("ipykernel")
 
 
 def run_sweep(
@@ -277,7 +288,7 @@ def run_sweep(
     """
     import pandas as pd
 
-    _check_sweep_input(fn, workers)
+    _check_sweep_input(fn, cells, workers)
     directory = resolve_cache_dir(cache_dir)
     check_writable(directory, "cells")
     root = repo_root()
@@ -296,7 +307,9 @@ def run_sweep(
 
     failures: dict[str, str] = {}
     initial = len(cells) - sum(count[key] for key in pending)
-    with tqdm(total=len(cells), initial=initial, desc=desc, unit="cell", file=sys.stderr) as bar:
+    with tqdm(
+        total=len(cells), initial=initial, desc=desc, unit="cell", file=sys.stderr, disable=not _shows_bars()
+    ) as bar:
         if pending:
             address = scheduler or os.environ.get("HIPREF_DASK_SCHEDULER")
             if address:

@@ -24,7 +24,7 @@ from hipref.teachers.models import (
     equally_near,
     nearest,
 )
-from hipref.validation import check_range
+from hipref.validation import check_interval, check_parameter, check_range, is_number
 
 __all__ = [
     "EQUAL",
@@ -141,6 +141,7 @@ class ScriptedPreferenceTeacher:
         rng: np.random.Generator,
         model: TeacherModel | None = None,
         scale: float = 1.0,
+        bounds: tuple[float, float] | None = None,
     ) -> None:
         """
         Args:
@@ -150,9 +151,15 @@ class ScriptedPreferenceTeacher:
             model: the teacher model (default: 'mistake', the paper's teacher).
             scale: the width R of the parameter's range, in its unit: the model's distances are fractions
                 of it, r(phi) = -|phi - phi*| / R.
+            bounds: the parameter's range (low, high), when known: a true parameter outside it is refused
+                (the teacher would prefer the candidate at the range's end whatever it is shown).
         """
-        if not (isinstance(true_parameter, numbers.Real) and math.isfinite(true_parameter)):
-            raise ValueError(f"true_parameter must be a finite number, got {true_parameter!r}")
+        if bounds is None:
+            if not (is_number(true_parameter) and math.isfinite(true_parameter)):
+                raise ValueError(f"true_parameter must be a finite number, got {true_parameter!r}")
+        else:
+            check_interval("bounds", bounds, -math.inf, math.inf)
+            check_parameter("true_parameter", true_parameter, bounds)
         check_range("noise", noise, 0.0, 1.0)
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"rng must be a numpy.random.Generator, got {rng!r}")
