@@ -125,8 +125,9 @@ COLUMNS: tuple[Column, ...] = (
     ),
 )
 NAMES: tuple[str, ...] = tuple(c.name for c in COLUMNS)
-_READ = ("query", "candidate_a", "candidate_b", "shown_left", "shown_right", "answer", "label", "chosen")
-_READ = (*_READ, "seconds", "catch_trial")
+_READ: tuple[str, ...] = ("query", "candidate_a", "candidate_b", "shown_left", "shown_right", "answer")
+_READ = (*_READ, "label", "chosen", "seconds", "catch_trial")
+"""The columns read from each answer line; the rest come from the header or are derived."""
 
 
 class SessionFormatError(ValueError):
