@@ -138,9 +138,31 @@ def test_malformed_line_is_refused_naming_file_and_line(folder: Path, tmp_path: 
     bad.write_text(lines[1] + "\n")
     with pytest.raises(ValueError, match=rf"{bad.name}, line 1: not a session header"):
         read_sessions(tmp_path)
+    bad.write_text("\n".join([*lines[:3], lines[3][:40]]))
+    with pytest.raises(ValueError, match=rf"{bad.name}, line 4: not JSON .*cut off while it was written"):
+        read_sessions(tmp_path)
 
 
-def test_command_refuses_missing_or_empty_folders(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_catch_trials_are_flagged_and_scored_apart(folder: Path, tmp_path: Path) -> None:
+    lines = (folder / "person_wiping_seed2.jsonl").read_text().splitlines()[:41]
+    records = [json.loads(line) for line in lines[1:]]
+    for record in records[:20]:
+        record["catch"] = True
+    (tmp_path / "p.jsonl").write_text("\n".join([lines[0], *map(json.dumps, records)]) + "\n")
+    table = read_sessions(tmp_path)
+    assert table["catch_trial"].sum() == 20
+    person = per_participant(table).iloc[0]
+    assert person["catch_trials"] == 20
+    assert person["catch_agreement"] == pytest.approx(table["agrees"][:20].mean())
+
+
+def test_command_exports_and_refuses_missing_or_empty_folders(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main([str(folder), str(tmp_path / "table")]) == 0
+    assert f"{2 * ANSWERS} answers of 2 participants" in capsys.readouterr().out
+    written = {p.name for p in (tmp_path / "table").iterdir()}
+    assert written == {"answers.csv", "answers.parquet", "answers.md"}
     assert main([str(tmp_path / "absent"), str(tmp_path / "out")]) == 1
     assert "no sessions folder" in capsys.readouterr().err
     assert main([str(tmp_path), str(tmp_path / "out")]) == 1
