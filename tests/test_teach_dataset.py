@@ -94,8 +94,10 @@ def test_psychometric_bins_hold_every_judged_answer(folder: Path) -> None:
 def test_data_card_lists_every_column(folder: Path, tmp_path: Path) -> None:
     table = export(folder, tmp_path)
     card = (tmp_path / "answers.md").read_text()
-    for column in table.columns:
-        assert f"| `{column}` |" in card
+    rows = [line for line in card.splitlines() if line.startswith("| `")]
+    assert [row.split("`")[1] for row in rows] == list(table.columns)
+    # Five cells a row: no description breaks the markdown table.
+    assert all(row.count("|") == 6 for row in rows)
     assert f"{len(table)} preference answers" in card
 
 

@@ -85,7 +85,7 @@ COLUMNS: tuple[Column, ...] = (
     Column("candidate_b", "float", _PARAMETER, _RANGE, "The pair's second candidate"),
     Column("shown_left", "float", _PARAMETER, _RANGE, "The candidate whose clip was on the left"),
     Column("shown_right", "float", _PARAMETER, _RANGE, "The candidate whose clip was on the right"),
-    Column("distance", "float", _PARAMETER, ">= 0", "|candidate_a - candidate_b|"),
+    Column("distance", "float", _PARAMETER, ">= 0", "The distance between the candidates, absolute"),
     Column("answer", "string", "-", ", ".join(ANSWERS), "What was pressed"),
     Column(
         "label",
@@ -106,7 +106,7 @@ COLUMNS: tuple[Column, ...] = (
         "agrees",
         "boolean",
         "-",
-        "true, false, empty",
+        "True, False, empty",
         "chosen == closer; empty for can't tell or a pair equally near the truth",
     ),
     Column(
@@ -120,7 +120,7 @@ COLUMNS: tuple[Column, ...] = (
         "catch_trial",
         "boolean",
         "-",
-        "true, false",
+        "True, False",
         "A catch trial (a pair far apart), as the answer's `catch` flag says; false when not recorded",
     ),
 )
