@@ -16,6 +16,7 @@ import torch
 
 from hipref.learners.bayes import BayesLearner
 from hipref.teach import open_session
+from hipref.teach.answers import learner_estimates, per_participant
 from hipref.teach.app import (
     FeedbackApp,
     PreferenceApp,
@@ -23,6 +24,7 @@ from hipref.teach.app import (
     answer_preferences_as_scripted,
 )
 from hipref.teach.config import TeachConfig
+from hipref.teach.dataset import read_sessions
 from hipref.teach.feedback import FeedbackTeaching
 from hipref.teach.preferences import PreferenceTeaching
 from hipref.teach.recorded import RecordedPreferenceTeacher, replay, summary
@@ -163,6 +165,12 @@ def test_replaying_a_session_rebuilds_the_live_learner_exactly(results, learner,
     assert facts["answers"] == config.preference_queries
     assert 0.0 <= facts["agreement_with_truth"] <= 1.0
     assert {"pesi_error", "co_pesi_estimated_error", "bayes_error", "osi_error"} <= facts.keys()
+    # The dataset of answers reads the same file as the session does.
+    person = per_participant(read_sessions(session.path.parent)).iloc[0]
+    assert person["agreement"] == pytest.approx(facts["agreement_with_truth"], nan_ok=True)
+    errors = learner_estimates(session.path.parent).set_index("method")["error"]
+    for method in ("osi", "pesi", "co_pesi_estimated", "bayes"):
+        assert errors[method] == pytest.approx(facts[f"{method}_error"])
 
 
 def _other_query(record: dict):

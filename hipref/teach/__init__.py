@@ -8,6 +8,9 @@
 - `recorded`: a stored session as a teacher, replayed into PESI, CO-PESI, the Bayesian learner and the noise
   estimators.
 - `outcome`: the task executed with the estimate before and after a session.
+- `dataset`: every session file of a folder as one table of answers (CSV, Parquet, data card).
+- `answers`: what the table says person by person: agreement, answer times, consistency, flip rates, the
+  psychometric curve, agreement across people, the learners' estimates.
 """
 
 from __future__ import annotations

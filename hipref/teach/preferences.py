@@ -125,6 +125,24 @@ class ShownQuery:
         return SIDES[self.order.index(candidate)]
 
 
+def answer_record(shown: ShownQuery, answer: str, seconds: float, seed: int) -> dict[str, Any]:
+    """The session file's line for `answer` to `shown` after `seconds`, in a session of `seed`: the pair in
+    the learner's order and as shown, the answer and its label, and the clip's slice (for replays)."""
+    c = shown.clip
+    return {
+        "kind": "preference",
+        "query": shown.number,
+        "candidates": list(shown.query.candidates),
+        "order": list(shown.order),
+        "shown": [shown.query.candidates[i] for i in shown.order],
+        "answer": answer,
+        "label": shown.label(answer),
+        "seconds": round(float(seconds), 3),
+        "seed": seed,
+        "clip": {"estimate": c.estimate, "periods": c.periods, "first": c.first, "tau": c.tau.tolist()},
+    }
+
+
 @dataclass
 class Asker:
     """What asking a query draws from: the learner and the session's random streams of layouts, sides and
@@ -307,26 +325,7 @@ class PreferenceTeaching:
         shown = self.current
         if shown is None:
             raise RuntimeError("every planned preference query has been answered")
-        c = shown.clip
-        self.session.append(
-            {
-                "kind": "preference",
-                "query": shown.number,
-                "candidates": list(shown.query.candidates),
-                "order": list(shown.order),
-                "shown": [shown.query.candidates[i] for i in shown.order],
-                "answer": answer,
-                "label": shown.label(answer),
-                "seconds": round(float(seconds), 3),
-                "seed": self.config.seed,
-                "clip": {
-                    "estimate": c.estimate,
-                    "periods": c.periods,
-                    "first": c.first,
-                    "tau": c.tau.tolist(),
-                },
-            }
-        )
+        self.session.append(answer_record(shown, answer, seconds, self.config.seed))
         branch = self._next.get(answer)
         # The branches of the other answers stop before rendering their clips. The answer is set before the
         # count, which `wanted` reads first: a branch that sees the new count sees the new answer.

@@ -20,14 +20,20 @@ import numpy as np
 
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
-from hipref.learners.bayes import BayesLearner
 from hipref.learners.coteaching import CoPESIConfig, EstimatedNoiseCoPESILearner
 from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
 from hipref.learners.noise_rate import likelihood_noise, repeated_pair_noise
 from hipref.learners.pesi import PESILearner
 from hipref.seeds import integer_seed
 from hipref.teach.config import TeachConfig
-from hipref.teach.preferences import Learner, evaluation_slices, make_learner, session_streams, tell
+from hipref.teach.preferences import (
+    Learner,
+    evaluation_slices,
+    make_learner,
+    running_estimate,
+    session_streams,
+    tell,
+)
 from hipref.teach.session import SessionFile
 from hipref.teachers.preference import PreferenceQuery, pair_labels
 from hipref.validation import check_choice
@@ -120,14 +126,18 @@ def summary(session: SessionFile, config: TeachConfig) -> dict[str, float]:
             result[f"algorithm5_{conflict}"] = estimate_noise(data, conflict)
         result["marginal_likelihood"] = likelihood_noise(data, spec.candidates.low, spec.candidates.high)
         result["repeated_pair"] = repeated_pair_noise(data)
-    evaluation = evaluation_slices(config, spec.make_task())
-    osi = pretrained_model(config.domain, config.data)
-    result["osi_error"] = abs(float(osi.predict(evaluation).mean()) - config.true_parameter)
-    for method in REPLAYED:
-        learner = replay(config, records, method)
-        if isinstance(learner, BayesLearner):
-            estimate = learner.estimate()
-        else:
-            estimate = float(learner.model.predict(evaluation).mean())
+    for method, estimate in estimates(config, records).items():
         result[f"{method}_error"] = abs(estimate - config.true_parameter)
+    return result
+
+
+def estimates(config: TeachConfig, records: Sequence[dict[str, Any]]) -> dict[str, float]:
+    """Each learner's estimate of the parameter from the session's preference `records`: 'osi' (the
+    pretrained SI, told nothing) and every `REPLAYED` learner, read as the session reads its own
+    (`running_estimate`: the Bayesian learner's posterior median, SI's mean on the probing slices)."""
+    evaluation = evaluation_slices(config, domain_spec(config.domain).make_task())
+    osi = pretrained_model(config.domain, config.data)
+    result = {"osi": float(osi.predict(evaluation).mean())}
+    for method in REPLAYED:
+        result[method] = running_estimate(replay(config, records, method), evaluation)
     return result
