@@ -105,6 +105,17 @@ def test_told_against_chosen_divides_answers_or_else_final_errors() -> None:
             for teacher, answers in [("mistake", (20.0, 22.0, 30.0)), ("myopic", (np.nan, np.nan, np.nan))]
             for t, a in zip(("model", "kind", "nothing"), answers, strict=True)
         ]
+        # A flip rate with the told learner alone (not among blind_noise_levels): left out.
+        + [
+            dict(
+                domain="wiping",
+                teacher="mistake",
+                noise=0.4,
+                query_rule="information_gain",
+                told="model",
+                answers=9.0,
+            )
+        ]
     )
     rows = pd.DataFrame(
         [
@@ -129,6 +140,7 @@ def test_told_against_chosen_divides_answers_or_else_final_errors() -> None:
     assert table.loc["mistake", "nothing_ratio"] == pytest.approx(1.5)
     assert table.loc["myopic", "nothing_ratio"] == pytest.approx(2.5)
     assert table.loc["myopic", "compared"] == "final error"
+    assert set(table.noise) == {0.2}
 
 
 def test_answer_counts_are_dense_early_and_end_at_the_last_answer() -> None:
@@ -152,6 +164,7 @@ def test_an_answers_run_is_deterministic_and_reaches_the_truth_with_perfect_answ
         (dict(teachers=("mistake",)), "teachers"),
         (dict(noise_levels=(0.2, 0.2)), "repeat"),
         (dict(noise_levels=(0.5,)), "noise_levels"),
+        (dict(noise_levels=(0.0,), blind_noise_levels=(0.0, 0.2)), "blind_noise_levels"),
         (dict(methods=("pesi", "osi")), "methods"),
         (dict(task_rules=("bisect",)), "task_rules"),
         (dict(checkpoints=(5, 66)), "checkpoints"),
@@ -173,3 +186,25 @@ def test_told_is_the_bayesian_learners_alone_and_belief_sampling_is_pesis() -> N
         SIRun("wiping", "bayes", 0.7, fine_tuning=FineTuning(candidate_sampling="belief"))
     assert SIRun("wiping", "bayes", 0.7, episodes=20, checkpoints=(0, 5, 20)).evaluated_at == (0, 5, 20)
     assert SIRun("wiping", "pesi", 0.7, episodes=66, eval_every=33).evaluated_at == (0, 33, 66)
+
+
+def test_chosen_queries_and_blind_learners_run_only_where_the_config_says() -> None:
+    config = AnswersConfig(
+        episodes=66,
+        checkpoints=(0, 5, 20),
+        noise_levels=(0.0, 0.4),
+        blind_noise_levels=(0.0,),
+        task_noise_levels=(0.2,),
+    )
+    task = config.task_cells()
+    rules = {(c.method, c.fine_tuning.candidate_sampling) for c in task}
+    assert rules == {
+        ("pesi", "uniform"),
+        ("co_pesi", "uniform"),
+        *((m, r) for m in ("bayes", "bayes_si") for r in ("uniform", "information_gain")),
+    }
+    assert {c.episodes for c in task} == {20}
+    told = {(c.noise, c.query_rule, c.told) for c in config.answers_cells() if c.teacher == "mistake"}
+    assert {t for e, r, t in told if e == 0.4} == {"model"}
+    assert {t for e, r, t in told if e == 0.0 and r == "information_gain"} == {"model", "kind", "nothing"}
+    assert {c.episodes for c in config.answers_cells()} == {66}

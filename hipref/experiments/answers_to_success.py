@@ -8,9 +8,12 @@ answered by the same teacher stream:
   and flip rate, query rule, and answer model told or chosen by marginal likelihood. Against it the Shannon
   floor: to single out one of K candidates from answers each wrong with probability e takes at least
   log2(K) / (1 - h(e)) answers, h the binary entropy (`shannon_floor`).
-- **The task** (MuJoCo, `hipref.experiments.si_run.run_si`): PESI, CO-PESI and the Bayesian learner, each
-  with uniform and chosen queries, evaluated after 0, 5, 10, 20, 33, ... answers on the same evaluation
-  episodes: the error of the estimate the controller gets and the success of the task executed with it.
+- **The task** (MuJoCo, `hipref.experiments.si_run.run_si`): PESI and CO-PESI with uniform pairs (Algorithm
+  2), the Bayesian learner with uniform and chosen queries, evaluated after 0, 5, 10, 20, 33, ... answers on
+  the same evaluation episodes: the error of the estimate the controller gets and the success of the task
+  executed with it. PESI's update does not use a posterior to choose from, and a chosen query executes a
+  fresh clip per answer (uniform pairs replay the environment's clips): chosen queries for PESI were
+  measured once (no difference detected in its final error) and are left out.
 
 The Bayesian learner of the task part is not told the teacher's model; under uniform queries it asks
 exactly PESI's queries (the same seed and draws), so the two differ only in what they make of the answers.
@@ -19,7 +22,7 @@ exactly PESI's queries (the same seed and draws), so the two differ only in what
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -154,11 +157,16 @@ class AnswersConfig(Protocol):
     eval_every: int = 1
     """Not used: the task part evaluates after `checkpoints` (1 passes the base's check for any episodes)."""
     checkpoints: tuple[int, ...] = (0, 5, 10, 20, 33, 66)
-    """Answers after which the task part evaluates (increasing, from 0 to `episodes`)."""
+    """Answers after which the task part evaluates (increasing, from 0 to at most `episodes`); its runs end
+    at the last one."""
     eval_episodes: int = 3
     """Evaluation episodes per checkpoint of the task part (section 5: 10)."""
     noise_levels: tuple[float, ...] = (0.0, 0.2)
     """Flip rates of the paper's teacher ('mistake') in the answers part, each in [0, 0.5)."""
+    blind_noise_levels: tuple[float, ...] = (0.0, 0.2)
+    """Of `noise_levels`, those at which the answers part also runs, under chosen rules, the learner told
+    only the teacher's kind and the one told nothing (the claims read 0 and 20 %); at the others it is told
+    the model."""
     teachers: tuple[str, ...] = ("distance",)
     """The other teacher models of the answers part (notebook 11's, each at its default; no flips)."""
     answer_rules: tuple[str, ...] = ("uniform", "information_gain")
@@ -168,7 +176,8 @@ class AnswersConfig(Protocol):
     methods: tuple[str, ...] = TASK_METHODS
     """Learners of the task part, of TASK_METHODS."""
     task_rules: tuple[str, ...] = ("uniform", "information_gain")
-    """Query rules of the task part, of QUERY_RULES; PESI's scores pairs on SI's belief."""
+    """Query rules of the Bayesian learners in the task part, of QUERY_RULES (PESI and CO-PESI ask uniform
+    pairs, Algorithm 2's)."""
     task_seeds: int = 1
     """Seeds per true parameter of the task part (its environments are the first of the answers part's):
     the physics costs a hundred times what the answers alone do."""
@@ -185,15 +194,18 @@ class AnswersConfig(Protocol):
         _check_set("answer_rules", self.answer_rules, QUERY_RULES)
         _check_set("methods", self.methods, TASK_METHODS)
         _check_set("task_rules", self.task_rules, QUERY_RULES)
-        for name in ("noise_levels", "task_noise_levels"):
+        for name in ("noise_levels", "blind_noise_levels", "task_noise_levels"):
             levels = getattr(self, name)
-            _check_set(name, levels, None)
+            _check_set(name, levels, None, empty=name == "blind_noise_levels")
             for level in levels:
                 if isinstance(level, bool) or not isinstance(level, int | float) or not 0.0 <= level < 0.5:
                     raise ValueError(f"{name} must hold flip rates in [0, 0.5), got {level!r}")
-        if not self.checkpoints or self.checkpoints[0] != 0 or self.checkpoints[-1] != self.episodes:
+        extra = set(self.blind_noise_levels) - set(self.noise_levels)
+        if extra:
+            raise ValueError(f"blind_noise_levels must be among noise_levels, got {sorted(extra)!r} besides")
+        if not self.checkpoints or self.checkpoints[0] != 0 or self.checkpoints[-1] > self.episodes:
             raise ValueError(
-                f"checkpoints must run from 0 to episodes={self.episodes}, got {self.checkpoints!r}"
+                f"checkpoints must run from 0 to at most episodes={self.episodes}, got {self.checkpoints!r}"
             )
         SIRun("wiping", "pesi", 0.7, episodes=self.episodes, checkpoints=self.checkpoints)
         check_int("task_seeds", self.task_seeds, 1, self.seeds)
@@ -204,13 +216,14 @@ class AnswersConfig(Protocol):
 
     def answers_cells(self) -> list[AnswersCell]:
         """The answers part: per environment, the paper's teacher at every flip rate: under uniform pairs
-        told its model (as PESI is told the flip rate), under a chosen rule told its model, its kind or
-        nothing; every other teacher under information gain, told its model or nothing."""
+        told its model (as PESI is told the flip rate), under a chosen rule told its model, and at
+        `blind_noise_levels` also its kind or nothing; every other teacher under information gain, told its
+        model or nothing."""
         settings = [
             ("mistake", e, rule, told)
             for e in self.noise_levels
             for rule in self.answer_rules
-            for told in (("model",) if rule == "uniform" else TOLD)
+            for told in (TOLD if rule != "uniform" and e in self.blind_noise_levels else ("model",))
         ]
         settings += [
             (t, 0.0, "information_gain", told) for t in self.teachers for told in ("model", "nothing")
@@ -223,22 +236,27 @@ class AnswersConfig(Protocol):
         ]
 
     def task_cells(self) -> list[SIRun]:
-        """The task part: every learner under every rule at every flip rate (CO-PESI above 0)."""
+        """The task part: every learner at every flip rate (CO-PESI above 0), the Bayesian ones under every
+        rule, PESI and CO-PESI under uniform pairs; each run ends at the last checkpoint."""
         return [
-            self.run_cell(
-                domain,
-                method,
-                truth,
-                seed,
-                fine_tuning=FineTuning(learning_rate=self.learning_rate, candidate_sampling=rule),
-                noise=noise,
-                checkpoints=self.checkpoints,
+            replace(
+                self.run_cell(
+                    domain,
+                    method,
+                    truth,
+                    seed,
+                    fine_tuning=FineTuning(learning_rate=self.learning_rate, candidate_sampling=rule),
+                    noise=noise,
+                    checkpoints=self.checkpoints,
+                ),
+                episodes=self.checkpoints[-1],
             )
             for domain in self.domains
             for noise in self.task_noise_levels
             for method in self.methods
             if not (method.startswith("co_pesi") and noise == 0)
             for rule in self.task_rules
+            if rule == "uniform" or method.startswith("bayes")
             for truth, seed in self.task_environments(domain)
         ]
 
@@ -333,9 +351,11 @@ def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame
     and the mean error at the last answer of the learner told the teacher's kind only and of the one told
     nothing (every model weighed by its marginal likelihood), each against the learner told the true
     model: `kind_ratio`, `nothing_ratio` divide the answers, or where the told learner never gets within one
-    step, the final errors."""
+    step, the final errors. Settings with the told learner alone (`blind_noise_levels`) are left out."""
     keys = ["domain", "teacher", "noise"]
     ig = steps[steps["query_rule"] == "information_gain"]
+    blind = ig[ig["told"] != "model"].set_index(keys).index
+    ig = ig[ig.set_index(keys).index.isin(blind)]
     answers = ig.pivot(index=keys, columns="told", values="answers")
     errors = rows[
         (rows["part"] == "answers")
