@@ -180,15 +180,6 @@ def test_the_model_family_covers_every_kind_and_its_flip_rates() -> None:
     assert {m.flip for m in family if m.kind == "flip"} >= {0.0, 0.2, 0.4}
 
 
-def test_the_prior_weighs_every_answer_model_alike_whatever_its_kinds_grid() -> None:
-    # Ten flip rates and one myopic spread: a prior uniform over kinds would give the myopic model ten
-    # times the prior of each flip rate; before any answer the posterior is the prior.
-    models = (*(AnswerModel("flip", flip=e) for e in np.arange(10) / 20), AnswerModel("myopic", spread=0.1))
-    posterior = PreferencePosterior(SMALL, models, refine=2)
-    np.testing.assert_allclose(posterior.joint().sum(axis=1), 1 / len(models), rtol=1e-12)
-    assert posterior.model_posterior()["flip"] == pytest.approx(10 / 11)
-
-
 def test_marginal_likelihood_prefers_the_teacher_that_answered() -> None:
     learner = BayesLearner(GRID, BayesConfig(), seed=4)
     teacher = ScriptedPreferenceTeacher(0.66, 0.0, np.random.default_rng(1), TeacherModel("skip"), scale=0.4)

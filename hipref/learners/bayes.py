@@ -6,18 +6,12 @@ PESI moves SI's distribution a little per answer (Eq. 2). What the answers allow
 
 over the truth phi and the teacher's answer model m (`hipref.learners.answer_models`): told the model, m is
 fixed; otherwise every model of `model_family()` is weighed by its marginal likelihood (Bayesian model
-averaging; `chosen_model` is the one of highest posterior), each model alike a priori. A prior uniform over
-the kinds instead gave each of the myopic picture's two spreads five times the prior of each of the ten flip
-rates; under 20 % uniform flips the myopic models' wide posteriors then held the averaged median off the
-truth, and the learner told nothing needed 31 answers where the one told the model needed 18 (wiping, 10
-environments; 19 with every model alike, pushing 35 -> 28 against 23). The graded teachers do not gain
-(answers to one step told nothing, against told the model: distance 50 -> 55 of 32 in wiping, 100 -> 90 of
-75 in pushing; stochastic pushing 150 -> 190 of 90): `python -m hipref.bench.model_choice`. Averaging was
-measured against keeping only the kind of highest marginal likelihood: with 20 % uniform flips the kept
-kind was often a near-equivalent soft model, and the learner needed about twice the answers. phi lives on a
-fine grid of points over the range, `refine` per step of Phi, every midpoint of two candidates among them:
-with the flip model the posterior is then exact on the intervals between pair midpoints and on the
-midpoints themselves (where a teacher breaks ties at random, as for a truth on the grid of Phi).
+averaging; `chosen_model` is the one of highest posterior). Averaging was measured against keeping only the
+kind of highest marginal likelihood: with 20 % uniform flips the kept kind was often a near-equivalent soft
+model, and the learner needed about twice the answers. phi lives on a fine grid of points over
+the range, `refine` per step of Phi, every midpoint of two candidates among them: with the flip model the
+posterior is then exact on the intervals between pair midpoints and on the midpoints themselves (where a
+teacher breaks ties at random, as for a truth on the grid of Phi).
 
 The prior is uniform, or ('si') SI's Pr(phi | tau) on the slice the estimate is for: the answers' posterior
 times SI's output on each evaluation slice, so what OSI knows is kept. The estimate the controller gets is
@@ -82,9 +76,9 @@ class PreferencePosterior:
         for all of it."""
         index = np.arange(self.cells.size)
         self._query_index = 2 * (index // half) + (index % half != 0)
-        # Every answer model alike (not every kind alike, which would give a kind of few parameter values,
-        # such as the myopic picture's two spreads, five times the prior of each of the ten flip rates).
-        self.log_model_prior = np.full(len(models), -np.log(len(models)))
+        kinds = [m.kind for m in models]
+        # Uniform over the kinds, then over each kind's parameters.
+        self.log_model_prior = np.array([-np.log(len(set(kinds))) - np.log(kinds.count(k)) for k in kinds])
         self.log_likelihood = np.zeros((len(models), self.cells.size))
         self.answers: list[tuple[np.ndarray, int]] = []
 
