@@ -95,9 +95,11 @@ lint: install
 typecheck: install
 	$(VENV)/bin/mypy
 
-# On every core: the slowest tests wait on kernels, browsers and worker processes, and overlap well.
+# On every core: the slowest tests wait on kernels, browsers and worker processes, and overlap well. Whole
+# files to a worker (each module fixture built once), the files of the tests marked slow first
+# (tests/conftest.py).
 pytest: install
-	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto tests
+	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto --dist=loadfile --no-loadscope-reorder tests
 
 # Two notebooks at a time, each in its own kernel (a notebook's cells stay in order on one worker): their
 # kernels start, import and plot while the other's sweep computes. The kernels listen on sockets of their own

@@ -69,6 +69,7 @@ def branches() -> dict[str, dict[str, str]]:
     return {branch: adam_digests(branch) for branch in ("COMPATIBLE", "AVX2")}
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="MKL's branches are those of x86-64 Linux")
 def test_the_studys_adam_steps_are_the_same_whichever_branch_of_mkl_runs(
     branches: dict[str, dict[str, str]],
@@ -76,6 +77,7 @@ def test_the_studys_adam_steps_are_the_same_whichever_branch_of_mkl_runs(
     assert branches["COMPATIBLE"]["study"] == branches["AVX2"]["study"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not intel(), reason="MKL's AVX2 branch runs on Intel processors only")
 def test_torchs_default_adam_steps_would_differ_between_the_branches(
     branches: dict[str, dict[str, str]],

@@ -97,6 +97,7 @@ def test_rows_are_identical_on_every_backend_and_follow_cell_order(
     assert executing_pids(env_log) <= worker_pids
 
 
+@pytest.mark.slow
 def test_cells_run_single_threaded_in_workers_and_in_process() -> None:
     import torch
 
@@ -202,6 +203,7 @@ def _returns_list(cell: ToyCell) -> list[int]:
     return [cell.seed]
 
 
+@pytest.mark.slow
 def test_killed_sweep_resumes_without_recomputing_and_matches_an_uninterrupted_run(
     tmp_path: Path, log_dir: Path
 ) -> None:
@@ -246,6 +248,7 @@ def test_code_version_names_the_package_version() -> None:
     assert sweep.code_version() is sweep.code_version()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", [1, 2])
 def test_the_artefacts_of_a_sweeps_cells_go_to_its_cache_dir(
     tmp_path: Path, workers: int, monkeypatch: pytest.MonkeyPatch
