@@ -95,15 +95,19 @@ lint: install
 typecheck: install
 	$(VENV)/bin/mypy
 
-# On every core: the slowest tests wait on kernels, browsers and worker processes, and overlap well.
+# On every core: the slowest tests wait on kernels, browsers and worker processes, and overlap well. Whole
+# files to a worker (each module fixture built once), the files of the tests marked slow first
+# (tests/conftest.py).
 pytest: install
-	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto tests
+	$(TEMP_RESULTS) $(VENV)/bin/pytest --numprocesses=auto --dist=loadfile --no-loadscope-reorder tests
 
 # Two notebooks at a time, each in its own kernel (a notebook's cells stay in order on one worker): their
 # kernels start, import and plot while the other's sweep computes. The kernels listen on sockets of their own
-# (tests/nbval_kernel.py), so two starting together never take the same port.
+# (tests/nbval_kernel.py), so two starting together never take the same port. The longest notebooks first,
+# by the time papermill recorded in each (tests/nbval_kernel.py).
 nbval: install
-	$(TEMP_RESULTS) $(PY) -m pytest -p tests.nbval_kernel --numprocesses=2 --dist=loadfile --nbval-lax \
+	$(TEMP_RESULTS) $(PY) -m pytest -p tests.nbval_kernel --numprocesses=2 --dist=loadfile --no-loadscope-reorder \
+		--nbval-lax \
 		$(NOTEBOOKS) --nbval-sanitize-with tests/nbval_sanitize.cfg -p no:cacheprovider
 
 lab: install

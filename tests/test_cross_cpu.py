@@ -122,6 +122,7 @@ def both_cpus(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, str],
                 process.wait()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("study", ["si_wiping", "si_pushing", "pretrained_coach"])
 def test_rows_are_byte_identical_on_an_avx2_cpu(
     both_cpus: tuple[dict[str, str], dict[str, str]], study: str

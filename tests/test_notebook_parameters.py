@@ -243,6 +243,7 @@ def executed_code_cells(notebook: dict) -> list[str]:
     ]
 
 
+@pytest.mark.slow
 def test_papermill_run_with_an_unknown_key_in_a_parameters_file_or_an_upper_case_p_fails_before_any_compute(
     tmp_path: Path,
 ) -> None:
@@ -260,6 +261,7 @@ def test_papermill_run_with_an_unknown_key_in_a_parameters_file_or_an_upper_case
     assert not results.exists()
 
 
+@pytest.mark.slow
 def test_papermill_python_api_with_an_undeclared_private_parameter_fails_before_any_compute(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -117,6 +117,7 @@ def test_no_progress_bar_is_written_when_stderr_is_no_terminal(capsys: pytest.Ca
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.slow
 def test_cells_run_single_threaded_in_workers_and_in_process() -> None:
     import torch
 
@@ -225,6 +226,7 @@ def _returns_list(cell: ToyCell) -> list[int]:
     return [cell.seed]
 
 
+@pytest.mark.slow
 def test_killed_sweep_resumes_without_recomputing_and_matches_an_uninterrupted_run(
     tmp_path: Path, log_dir: Path
 ) -> None:
@@ -269,6 +271,7 @@ def test_code_version_names_the_package_version() -> None:
     assert sweep.code_version() is sweep.code_version()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", [1, 2])
 def test_the_artefacts_of_a_sweeps_cells_go_to_its_cache_dir(
     tmp_path: Path, workers: int, monkeypatch: pytest.MonkeyPatch

@@ -53,6 +53,7 @@ def test_a_run_gives_identical_rows_twice():
     assert sorted(first.episode.unique()) == [0, 2, 4]
 
 
+@pytest.mark.slow
 def test_co_pesi_reports_its_filter_against_the_recorded_flips():
     cell = SIRun(
         "pushing", "co_pesi", 14.0, noise=0.3, episodes=40, eval_every=20, eval_episodes=1, data=TINY
@@ -68,6 +69,7 @@ def test_co_pesi_reports_its_filter_against_the_recorded_flips():
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("domain", "truth", "method", "noise"),
     [("wiping", 0.74, "co_pesi", 0.3), ("pushing", 15.5, "pesi_ce", 0.1)],
@@ -88,6 +90,7 @@ def test_replayed_learning_clips_give_the_rows_of_executing_them(domain, truth, 
     assert len(executed) == 1
 
 
+@pytest.mark.slow
 def test_every_method_meets_the_same_evaluation_episodes():
     # Before any preference the methods share SI's pretrained model: equal episodes, equal first rows.
     first = [
@@ -149,6 +152,7 @@ def test_two_truths_with_one_seed_draw_different_evaluation_episodes():
     assert first[0].slices.shape == (2, 3 * first[0].slices.shape[1] // 3)
 
 
+@pytest.mark.slow
 def test_a_run_with_fewer_episodes_reads_the_start_of_a_longer_ones_clips_and_checkpoints(monkeypatch):
     # Built afresh, a two-checkpoint evaluation is the start of a three-checkpoint one.
     task = WipingTask()

@@ -124,6 +124,7 @@ def wait_answers(results: Path, count: int, timeout: float = 60) -> list[dict]:
     return found
 
 
+@pytest.mark.slow
 def test_a_person_teaches_closes_the_browser_and_resumes(lab):
     url, results = lab
     flags = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

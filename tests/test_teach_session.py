@@ -200,6 +200,7 @@ CRASHING_SESSION = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_a_killed_session_resumes_where_it_stopped(results, tmp_path):
     script = CRASHING_SESSION.format(small=SMALL)
     command = [sys.executable, "-c", script]

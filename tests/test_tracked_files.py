@@ -62,6 +62,7 @@ def writes_to_a_checkout(directory: Path) -> bool:
     return ignored.returncode != 0
 
 
+@pytest.mark.slow
 def test_executing_a_notebook_changes_no_tracked_file(tmp_path: Path) -> None:
     if git("rev-parse", "--show-toplevel").returncode != 0:
         pytest.skip(f"{ROOT} is not a git checkout, so there are no tracked files to protect")
