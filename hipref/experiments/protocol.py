@@ -38,9 +38,9 @@ class Protocol:
     eval_slices: int = 3
     """Probing slices per evaluation episode (for the multi-slice estimate)."""
     n_trajectories: int = 300
-    """Algorithm 4 trajectories (the full profile: the study's 3,000; A.7's 100 starve SI, notebook 13)."""
-    pretrain_steps: int = 3000
-    """Adam steps of Algorithm 4."""
+    """Algorithm 4 trajectories (the full profile: 3000, the study's; A.7's 100 starve SI, notebook 13)."""
+    pretrain_steps: int = 500
+    """Adam steps of Algorithm 4 (the full profile: 3000)."""
     pretrain_loss: str = "nll"
     """Algorithm 4's loss: 'nll' (the study's), or A.7's mean squared loss 'brier', 'expectation' or
     'brier_expectation' (see `PretrainData.loss`)."""

@@ -59,7 +59,7 @@ class SensitivityConfig(Protocol):
     `learning_rate` are not read: each variant sets its own (VARIANTS), and its trajectories where it names
     them."""
 
-    variants: tuple[str, ...] = ("default", "paper_a7", "reset_every_step", "previous_design")
+    variants: tuple[str, ...] = ("default", "paper_a7")
     """Which variants to run, each a key of VARIANTS (the full profile runs them all)."""
     domains: tuple[str, ...] = ("wiping", "pushing")
     """Domains to run."""

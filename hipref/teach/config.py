@@ -59,10 +59,10 @@ class TeachConfig:
     """File name of the session under the results directory's `sessions/`; '' names it after the teacher,
     the domain and the seed. A person's session resumes from it; the stand-in's is written afresh."""
     n_trajectories: int = 300
-    """Algorithm 4 trajectories SI is pretrained on (the full profile: the study's 3,000, the SI studies'
+    """Algorithm 4 trajectories SI is pretrained on (the full profile: 3000, the SI studies'
     model, reused; A.7: 100)."""
-    pretrain_steps: int = 3000
-    """Adam steps of Algorithm 4."""
+    pretrain_steps: int = 500
+    """Adam steps of Algorithm 4 (the full profile: 3000)."""
 
     def __post_init__(self) -> None:
         check_choice("teacher", self.teacher, TEACHERS)
