@@ -98,6 +98,16 @@ def _pesi(results: Path) -> dict[str, str]:
         out[f"time_slope_{domain}"] = slope_text(slope, unit, digits, 100 * scale)
         steps = verdicts.steps(differences, x="episode", y="difference", units=("ground_truth", "seed"))
         out[f"time_steps_{domain}"] = significant_steps(steps, increasing=False)
+    held_out = csv(results, "data/02_r1_pesi_held_out.csv")
+    replicated = []
+    for domain, (unit, scale, digits) in UNITS.items():
+        mine = held_out[held_out["domain"] == domain]
+        d = verdicts.paired_difference(mine, metric="param_error", method="pesi", baseline="osi")
+        replicated.append(verdicts.better(d, lower_is_better=True))
+        out[f"held_out_{domain}"] = interval(d, unit, digits, scale)
+        out[f"held_out_truths_{domain}"] = ", ".join(f"{t:g}" for t in sorted(mine["ground_truth"].unique()))
+    out["held_out_seeds"] = ", ".join(str(s) for s in sorted(held_out["seed"].unique()))
+    out["held_out_verdict"] = WORDS[verdicts.combine(replicated)]
     wiping = rows[rows["domain"] == "wiping"]
     ce = verdicts.paired_difference(wiping, metric="param_error", method="pesi", baseline="pesi_ce")
     environments = wiping[["ground_truth", "seed"]].drop_duplicates()

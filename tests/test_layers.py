@@ -24,14 +24,17 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("control", "learners"),
     ("envs",),
     ("experiments",),
-    ("teach", "readme"),
+    ("teach", "readme_format"),
+    ("readme_noise", "readme_beyond"),
+    ("readme",),
     ("bench",),
 )
 """The rooms of each floor, from the ground up: the foundations (seeds, checks, numerics); the bootstrap
 intervals; the verdicts read from them; the results, whose claims carry verdicts; the scene, the teachers,
 the sweep and the notebooks' machinery; the controllers and the learners (no physics); the tasks; the
-studies that compose them; a person teaching in JupyterLab and the README's numbers read from the studies'
-results; the benchmarks. `hipref/__init__.py` is on the ground floor and imports only from it."""
+studies that compose them; a person teaching in JupyterLab and the README's formatting; the README's numbers
+read from the studies' results, by group; the README itself; the benchmarks. `hipref/__init__.py` is on the
+ground floor and imports only from it."""
 
 NEVER: dict[str, tuple[str, ...]] = {
     "learners": ("hipref.envs", "hipref.sim", "hipref.control", "mujoco"),

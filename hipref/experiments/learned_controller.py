@@ -89,6 +89,9 @@ class LearnedControllerConfig(Protocol):
     """Algorithm 4 trajectories, collected with each low level (A.7: 100)."""
     pretrain_steps: int = 300
     """Adam steps of Algorithm 4."""
+    pretrain_loss: str = "brier"
+    """Algorithm 4's loss: A.7's squared loss over SI's distribution, for every low level (the study's 3000
+    trajectories with the negative log-likelihood would cost a collection per learned low level)."""
     iterations: int = 30
     """Algorithm 3's iterations: expert trajectories collected, one per iteration, per domain."""
     updates_per_iteration: int = 25
