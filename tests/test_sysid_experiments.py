@@ -17,6 +17,7 @@ from hipref.experiments import si_pretraining, si_run
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.r2_noise import R2Config
+from hipref.experiments.si_evaluation import EvaluationSpec, evaluation_episodes
 from hipref.experiments.si_pretraining import (
     PretrainCell,
     PretrainData,
@@ -24,7 +25,7 @@ from hipref.experiments.si_pretraining import (
     pretrain_models,
     pretrained_model,
 )
-from hipref.experiments.si_run import EvaluationSpec, FineTuning, SIRun, evaluation_episodes, run_si
+from hipref.experiments.si_run import FineTuning, SIRun, run_si
 
 TINY = PretrainData(n_trajectories=24, trajectory_steps=40, pretrain_steps=400)
 

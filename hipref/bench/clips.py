@@ -2,7 +2,7 @@
 
 `python -m hipref.bench.clips` runs PESI in one environment per domain at several noise levels, one run
 after another in this process, twice: replaying the clips each environment executes once
-(`hipref.experiments.si_run.learning_clips`, what the studies do) and executing every run's clips itself.
+(`hipref.experiments.si_clips.learning_clips`, what the studies do) and executing every run's clips itself.
 It checks that both give the same rows and prints one JSON line with the median wall time of each over the
 repeats and their ratio. Nothing is written to disk; the SI models, the compiled controllers and the
 evaluation episodes (the same for both) are built before timing, and the clips are forgotten before each

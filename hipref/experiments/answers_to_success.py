@@ -30,7 +30,9 @@ import pandas as pd
 
 from hipref.experiments.domains import DOMAINS, domain_spec
 from hipref.experiments.protocol import Protocol
-from hipref.experiments.si_run import METHODS, FineTuning, SIRun, run_si, run_streams
+from hipref.experiments.si_clips import run_streams
+from hipref.experiments.si_methods import METHODS
+from hipref.experiments.si_run import FineTuning, SIRun, run_si
 from hipref.learners.answer_models import TOLD, hypotheses, told
 from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.queries import QUERY_RULES

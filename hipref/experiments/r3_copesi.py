@@ -16,7 +16,7 @@ import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
 from hipref.experiments.protocol import Protocol
-from hipref.experiments.si_run import METHODS as SI_METHODS
+from hipref.experiments.si_methods import METHODS as SI_METHODS
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_grids, check_range

@@ -23,9 +23,10 @@ import pandas as pd
 
 from hipref.experiments.domains import DOMAINS, domain_spec
 from hipref.experiments.protocol import Protocol
+from hipref.experiments.si_clips import LearningSpec, learning_clips, run_streams
+from hipref.experiments.si_methods import METHODS as SI_METHODS
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
-from hipref.experiments.si_run import METHODS as SI_METHODS
-from hipref.experiments.si_run import LearningSpec, SIRun, learning_clips, run_si, run_streams
+from hipref.experiments.si_run import SIRun, run_si
 from hipref.learners.noise_rate import likelihood_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.robust import buffer_preferences
@@ -78,8 +79,8 @@ class RobustnessConfig(Protocol):
     teachers: tuple[str, ...] = QUICK_TEACHERS
     """Teacher models (`hipref.teachers.models.TEACHER_KINDS`); full profile: all of TEACHERS."""
     methods: tuple[str, ...] = QUICK_LEARNERS
-    """Learners (`hipref.experiments.si_run.METHODS`); must include the baseline 'pesi'. Full profile: all of
-    LEARNERS."""
+    """Learners (`hipref.experiments.si_methods.METHODS`); must include the baseline 'pesi'. Full profile:
+    all of LEARNERS."""
     noise: float = 0.2
     """The flip rate of the 'mistake' teacher (the paper's middle level); the other teachers flip nothing
     on top of their own errors."""

@@ -1,59 +1,41 @@
-"""One SI run (`run_si`, a sweep cell) in one environment with a fixed, unknown parameter phi.
+"""One SI run (`run_si`, a sweep cell) in one environment with a fixed, unknown parameter phi: Algorithm 2.
 
-- Algorithm 2: each learning episode samples N candidates, executes the low-level policy pi^l with each
-  in the world, samples a trajectory slice tau of h control periods, gets the scripted teacher's
-  (possibly flipped) preference and tells the learner, which updates SI (Eq. 2, Eq. 3 or the standard
-  cross-entropy of A.8; Algorithm 1 for CO-PESI). OSI (`si_pretraining`) learns nothing.
-- Evaluation (section 5, 'Performance metrics'): at episode 0 and every 33 learning episodes the learner is
-  frozen and 10 evaluation episodes are run: SI's absolute error on a fresh slice (`param_error`, with two
-  other read-outs) and the success of the task executed with SI's estimate (`success_rate`).
+    for i <- 0, 1, 2, ... do
+        Execute policy pi^l_phi with phi_0, phi_1 sampled from Phi
+        Sample trajectory slice tau
+        Ask for human preference y
+        Update system identification model SI by Eqn. 2
+    end for
 
-Which estimate drives the slices. In a learning episode the candidates are drawn uniformly from Phi (or,
-as an option, from SI's belief) and tau is a slice of the clip pi^l executes with one of them, every
-candidate's clip starting from the same layout (PESILearner.ask, `hipref.envs.task.clip`). Uniformly drawn
-queries do not depend on what SI has learnt, so one environment's clips are executed once and replayed by
-every method and noise level (`learning_clips`). Every slice SI is evaluated on, and every slice of
-Algorithm 4's data, comes from a probing rollout that pi^l executes with an estimate drawn uniformly from
-the range: OSI is evaluated on the inputs it was trained for.
+Each learning episode samples N candidates, executes the low-level policy pi^l with each in the world,
+samples a trajectory slice tau of h control periods, gets the scripted teacher's (possibly flipped)
+preference and tells the learner, which updates SI (Eq. 2, Eq. 3 or the standard cross-entropy of A.8;
+Algorithm 1 for CO-PESI). OSI (`si_pretraining`) learns nothing. The methods' learners are built in
+`hipref.experiments.si_methods`; the clips the queries observe are shared by every run of an environment
+(`hipref.experiments.si_clips`); at episode 0 and every 33 learning episodes the learner is frozen and
+evaluated (`hipref.experiments.si_evaluation`).
 """
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from hipref.envs.task import Clip, Layout, Task, observer, probe_slice
+from hipref.envs.task import observer
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.low_level import make_task
+from hipref.experiments.si_clips import LearningSpec, learning_clips, run_streams
+from hipref.experiments.si_evaluation import EvaluationSpec, estimator, evaluate, evaluation_episodes
+from hipref.experiments.si_methods import METHODS, PAIR_METHODS, make_learner
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
-from hipref.learners.answer_models import TOLD, hypotheses
-from hipref.learners.bayes import BayesConfig, BayesLearner
-from hipref.learners.coteaching import (
-    CoPESIConfig,
-    CoPESILearner,
-    EstimatedNoiseCoPESILearner,
-    reset_every_step_schedule,
-)
-from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS, PESIConfig, PESILearner
+from hipref.learners.answer_models import TOLD
+from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS
 from hipref.learners.queries import CHOSEN
-from hipref.learners.robust import (
-    LabelSmoothingPESILearner,
-    LikelihoodNoiseCoPESILearner,
-    RobustPESIConfig,
-    SmallLossPESILearner,
-    TrustFlipPESILearner,
-    UnbiasedPESILearner,
-)
-from hipref.learners.sysid import SIModel
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import integer_seed
-from hipref.sweep import cached_prefix
 from hipref.teachers.models import TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_int, check_range
@@ -172,244 +154,6 @@ class SIRun:
     def evaluated_at(self) -> tuple[int, ...]:
         """The learning episodes after which the learner is evaluated."""
         return self.checkpoints or tuple(range(0, self.episodes + 1, self.eval_every))
-
-
-Learner = PESILearner | BayesLearner
-"""What a method's learner is: PESI (and the learners built on it) or the Bayesian learner."""
-
-LearnerBuilder = Callable[["SIRun", SIModel, dict[str, Any], int], "Learner | None"]
-"""Builds a method's learner from the cell, the pretrained model, the PESI settings every method shares
-(`common`) and the learner's seed; None for a method that learns nothing."""
-
-
-def _coteaching_config(cell: SIRun, common: dict[str, Any]) -> CoPESIConfig:
-    spec = domain_spec(cell.domain)
-    learned = cell.fine_tuning.coteaching_schedule == "learned"
-    schedule = CoPESIConfig if learned else reset_every_step_schedule
-    return schedule(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
-
-
-def _bayes_config(cell: SIRun) -> BayesConfig:
-    models = hypotheses(cell.teacher, cell.noise, cell.told)
-    return BayesConfig(cell.n_candidates, cell.fine_tuning.candidate_sampling, models)
-
-
-def _robust_config(cell: SIRun, common: dict[str, Any]) -> RobustPESIConfig:
-    return RobustPESIConfig(start_size=domain_spec(cell.domain).batch_size, **common)
-
-
-LEARNERS: dict[str, LearnerBuilder] = {
-    "osi": lambda cell, model, common, seed: None,
-    "pesi": lambda cell, model, common, seed: PESILearner(model, PESIConfig(loss="soft", **common), seed),
-    "pesi_ce": lambda cell, model, common, seed: PESILearner(
-        model, PESIConfig(loss="standard", **common), seed
-    ),
-    "co_pesi": lambda cell, model, common, seed: CoPESILearner(
-        model, cell.noise, _coteaching_config(cell, common), seed
-    ),
-    # A.9: the forget number comes from Algorithm 5 on the preferences so far, not the true noise.
-    "co_pesi_estimated": lambda cell, model, common, seed: EstimatedNoiseCoPESILearner(
-        model, _coteaching_config(cell, common), seed
-    ),
-    "pesi_smoothed": lambda cell, model, common, seed: LabelSmoothingPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "pesi_unbiased": lambda cell, model, common, seed: UnbiasedPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "pesi_small_loss": lambda cell, model, common, seed: SmallLossPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "pesi_rime": lambda cell, model, common, seed: TrustFlipPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "co_pesi_likelihood": lambda cell, model, common, seed: LikelihoodNoiseCoPESILearner(
-        model, _coteaching_config(cell, common), seed
-    ),
-    "bayes": lambda cell, model, common, seed: BayesLearner(
-        model.candidates, _bayes_config(cell), seed, si_model=model
-    ),
-    "bayes_si": lambda cell, model, common, seed: BayesLearner(
-        model.candidates, dataclasses.replace(_bayes_config(cell), prior="si"), seed, si_model=model
-    ),
-}
-"""Every method by name. osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy
-(A.8); co_pesi: Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level
-estimated by Algorithm 5 from the preferences so far (A.9). Beyond the paper (`hipref.learners.robust`):
-pesi_smoothed: label smoothing of Eq. 2 (conservative); pesi_unbiased: the unbiased loss with the estimated
-flip rate; pesi_small_loss: SI's own small-loss filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood:
-Algorithm 1 with the maximum marginal likelihood flip rate; bayes: the exact posterior over phi from every
-answer (`hipref.learners.bayes`), its model of the teacher chosen by marginal likelihood unless told;
-bayes_si: that posterior times SI's Pr(phi | tau) on the slice estimated from, so OSI's knowledge is kept."""
-
-METHODS: tuple[str, ...] = tuple(LEARNERS)
-"""The methods' names, in LEARNERS' order."""
-
-PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce", "bayes", "bayes_si"}
-"""Methods defined on pairs only (N = 2): classifiers of pairs, or losses mixing y and -y."""
-
-
-def make_learner(cell: SIRun, model: SIModel, seed: int) -> Learner | None:
-    """The learner of `cell.method` on a copy of the pretrained model; None for OSI (no updates)."""
-    spec = domain_spec(cell.domain)
-    tuning = cell.fine_tuning
-    common = dict(
-        encourage_percentage=tuning.encourage_percentage,
-        learning_rate=tuning.learning_rate,
-        batch_size=spec.batch_size,
-        n_candidates=cell.n_candidates,
-        history=cell.data.history,
-        candidate_sampling=tuning.candidate_sampling,
-        pr_domain=tuning.pr_domain,
-        fine_tuned=tuning.fine_tuned,
-    )
-    return LEARNERS[cell.method](cell, model, common, seed)
-
-
-class RunStreams(NamedTuple):
-    """A run's independent random streams, children of its (seed, ground truth) SeedSequence."""
-
-    teacher: np.random.SeedSequence
-    learner: np.random.SeedSequence
-    learning: np.random.SeedSequence
-    evaluation: np.random.SeedSequence
-
-
-def run_streams(seed: int, ground_truth: float) -> RunStreams:
-    """The streams of the environment (seed, ground truth): two truths of a grid never share draws."""
-    micro = round(ground_truth * 1_000_000)
-    return RunStreams(*np.random.SeedSequence([seed, micro]).spawn(4))
-
-
-@dataclass(frozen=True)
-class EvaluationSpec:
-    """What a run's evaluation episodes depend on: not the method, the noise level, N or how many
-    checkpoints the run has (checkpoint k is the same in a short run and a long one)."""
-
-    domain: str
-    ground_truth: float
-    seed: int
-    """The run's seed, whose `run_streams(seed, ground_truth).evaluation` seeds the evaluations."""
-    eval_episodes: int
-    slices: int
-    history: int
-    low_level: tuple[Any, ...] = ("admittance",)
-    """The pi^l the probing rollouts execute (`LowLevel.key`)."""
-
-
-class Episode(NamedTuple):
-    """An evaluation episode: the probing slices SI estimates from, and the layout the task is then
-    attempted in."""
-
-    slices: np.ndarray
-    """(slices, input_dim): the first drives the attempt; all of them the multi-slice estimate."""
-    layout: Layout
-
-
-def evaluation_episodes(task: Task, spec: EvaluationSpec, checkpoints: int) -> list[list[Episode]]:
-    """Per checkpoint, its evaluation episodes, drawn from the checkpoint's own seed (child k of the run's
-    evaluation stream). Every method, noise level and N of one environment meets the same episodes, so
-    they are built once (cached, and shared with studies of fewer checkpoints) and the methods' runs
-    differ only in what SI makes of them: comparisons between methods are paired."""
-
-    def build(count: int) -> list[list[Episode]]:
-        built = []
-        for seq in run_streams(spec.seed, spec.ground_truth).evaluation.spawn(count):
-            rng = np.random.default_rng(seq)
-            episodes = []
-            for _ in range(spec.eval_episodes):
-                taus = [probe_slice(task, spec.ground_truth, spec.history, rng) for _ in range(spec.slices)]
-                episodes.append(Episode(np.stack(taus), task.sample_layout(rng)))
-            built.append(episodes)
-        return built
-
-    def complete(episodes: list[Episode]) -> bool:
-        return len(episodes) == spec.eval_episodes and all(len(e.slices) == spec.slices for e in episodes)
-
-    return cached_prefix(f"si_evaluation_{spec.domain}", spec, checkpoints, build, check=complete)
-
-
-@dataclass(frozen=True)
-class LearningSpec:
-    """What the clips of a run's learning episodes depend on when its candidates are drawn uniformly: not
-    the method, the noise level, how SI is fine-tuned or how many episodes the run has (episode k's clip is
-    the same in a short run and a long one)."""
-
-    domain: str
-    ground_truth: float
-    seed: int
-    """The run's seed; with the ground truth it seeds the learner's queries and the layouts."""
-    n_candidates: int
-    history: int
-    low_level: tuple[Any, ...] = ("admittance",)
-    """The pi^l the clips execute (`LowLevel.key`)."""
-
-
-def learning_clips(task: Task, spec: LearningSpec, episodes: int, model: SIModel) -> list[Clip]:
-    """Per learning episode, the clip its query observes, executed once per environment (cached).
-
-    With candidates drawn uniformly from Phi (Algorithm 2), what a learner asks never depends on what SI has
-    learnt or on the answers: the candidates, the layout and the slice's place come from the run's own
-    streams. So every method, noise level and fine-tuning of one environment executes the same clips, and
-    they are executed once, by a learner that only asks; runs replay them (`Clip.replay`) with their own
-    learners, whose queries are checked against them. The rows are those of executing every run's clips.
-    A study with fewer episodes replays the first clips of a longer one.
-    """
-
-    def build(count: int) -> list[Clip]:
-        truth, h = spec.ground_truth, spec.history
-        _, learner_seq, learn_seq, _ = run_streams(spec.seed, truth)
-        config = PESIConfig(n_candidates=spec.n_candidates, history=spec.history)
-        asker = PESILearner(model, config, integer_seed(learner_seq))
-        learn_rng = np.random.default_rng(learn_seq)
-        clips: list[Clip] = []
-        for _ in range(count):
-            layout = task.sample_layout(learn_rng)
-            asker.ask(observer(task, truth, layout, h, clips))
-        return clips
-
-    return cached_prefix(
-        f"si_learning_{spec.domain}", spec, episodes, build, check=lambda item: isinstance(item, Clip)
-    )
-
-
-class Estimator(NamedTuple):
-    """How a learner estimates phi from slices: E[phi] on each, and the most probable value on one."""
-
-    expectations: Callable[[np.ndarray], np.ndarray]
-    mode: Callable[[np.ndarray], float]
-
-
-def estimator(learner: Learner | SIModel) -> Estimator:
-    """SI's read-outs (OSI, and every PESI learner's fine-tuned SI), or the Bayesian learner's."""
-    if isinstance(learner, BayesLearner):
-        return Estimator(learner.estimates, learner.mode)
-    model = learner if isinstance(learner, SIModel) else learner.model
-    return Estimator(model.predict, lambda tau: float(model.predict_mode(tau)))
-
-
-def evaluate(task: Task, model: Estimator, episodes: list[Episode], ground_truth: float) -> dict[str, float]:
-    """A frozen learner on one checkpoint's episodes: its errors by three read-outs, and the task's success.
-
-    param_error: |E_Pr[phi] - phi| on the first slice, the estimate the controller is given and the task
-    attempted with (success_rate). param_error_argmax: the most probable candidate instead of the mean.
-    param_error_multislice: the mean of E_Pr[phi] over all the episode's slices, less sensitive to one
-    unlucky slice.
-    """
-    errors: dict[str, list[float]] = {
-        "param_error": [],
-        "param_error_argmax": [],
-        "param_error_multislice": [],
-    }
-    successes = []
-    for episode in episodes:
-        expectations = model.expectations(episode.slices)
-        phi_hat = float(expectations[0])
-        errors["param_error"].append(abs(phi_hat - ground_truth))
-        errors["param_error_argmax"].append(abs(model.mode(episode.slices[0]) - ground_truth))
-        errors["param_error_multislice"].append(abs(float(expectations.mean()) - ground_truth))
-        successes.append(task.rollout(ground_truth, phi_hat, episode.layout).success)
-    return {**{k: float(np.mean(v)) for k, v in errors.items()}, "success_rate": float(np.mean(successes))}
 
 
 def run_si(cell: SIRun) -> pd.DataFrame:
