@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from hipref.envs.gym_envs import DeskWipingEnv, PushingEnv
-from hipref.envs.pushing import PushingConfig, PushingTask
+from hipref.envs.pushing import PushingTask
+from hipref.envs.pushing_config import PushingConfig
 from hipref.envs.wiping import WipingConfig
 
 

@@ -7,7 +7,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from hipref.envs.pushing import PushingConfig, PushingTask
+from hipref.envs.pushing import PushingTask
+from hipref.envs.pushing_config import PushingConfig
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +28,7 @@ def test_layout_inside_area_and_reset_touches_cube(task: PushingTask) -> None:
         task.reset(12.0, start, goal)
         scene = task.scene
         tip = scene.data.site_xpos[scene.tool_tip]
-        expected = start - task.direction * task._standoff()
+        expected = start - task.direction * task.poses.standoff()
         assert np.linalg.norm(tip[:2] - expected) < cfg.reach_residual
 
 

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import hipref  # noqa: F401 - registers the environments
-from hipref.envs.pushing import PushingConfig, PushingTask
+from hipref.envs.pushing import PushingTask
+from hipref.envs.pushing_config import PushingConfig
 from hipref.experiments.controllers import AblationCell, ControllersConfig, CurveCell
 from hipref.experiments.r2_noise import R2Config
 from hipref.experiments.r3_copesi import R3Config

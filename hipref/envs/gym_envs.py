@@ -18,7 +18,8 @@ import gymnasium as gym
 import numpy as np
 
 from hipref.control.tool import FEATURES_PER_PERIOD, WRIST_FORCE
-from hipref.envs.pushing import PushingConfig, PushingTask
+from hipref.envs.pushing import PushingTask
+from hipref.envs.pushing_config import PushingConfig
 from hipref.envs.wiping import WipingConfig, WipingTask
 from hipref.validation import check_int, check_parameter
 

@@ -29,16 +29,14 @@ until the cube comes to rest after the planned push."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from hipref.control.admittance import AdmittanceGains
-from hipref.control.arm import PostureSeed, reached, wrap_joints
 from hipref.control.ik import tool_down_rotation
 from hipref.control.push import PushPlan, execute_push
-from hipref.control.tool import ARM_POSITIONS, ControllerConfig, ToolController
+from hipref.control.tool import ARM_POSITIONS, ToolController
 from hipref.envs.low_level import (
     Demonstration,
     JointReferencePolicy,
@@ -49,96 +47,12 @@ from hipref.envs.low_level import (
     initial_state,
     no_perturbation,
 )
+from hipref.envs.pushing_config import PushingConfig
+from hipref.envs.pushing_layout import PaddlePoses
 from hipref.envs.task import Layout, Rollout, evenly_spaced
-from hipref.sim.config import SceneConfig
 from hipref.sim.render import clip_frames, watching_camera
 from hipref.sim.scene import Scene, make_scene
-from hipref.validation import check_int, check_interval, check_parameter, check_range
-
-
-@dataclass(frozen=True)
-class PushingConfig:
-    """The pushing task: mass range, where cubes and goals lie, and the push plan."""
-
-    scene: SceneConfig = field(default_factory=SceneConfig)
-    """The physical world (Table 1)."""
-    controller: ControllerConfig = field(default_factory=ControllerConfig)
-    """Gains of SPD (the push direction uses `push_admittance`)."""
-    mass_range: tuple[float, float] = (8.0, 20.0)
-    """Range of the cube mass in kg, the unknown parameter (Table 2)."""
-    desk_height: float = 0.7
-    """Height of the desk in m (known in this task)."""
-    area_x: tuple[float, float] = (-0.3, 0.3)
-    """Extent along the desk in m where cubes start and goals lie."""
-    area_y: tuple[float, float] = (0.0, 0.25)
-    """Extent across the desk in m where cubes start and goals lie: away from the base (at y = -0.42),
-    where the elbow is not folded near its limit, and the cube stays on the desk (its edge at 0.3)."""
-    push_distance: tuple[float, float] = (0.1, 0.2)
-    """Range of the distance in m from the cube's start to its goal: some 3 to 7 goal tolerances, so that
-    a mass error of a few kg moves the cube out of tolerance."""
-    planned_acceleration: float = 2.0
-    """Acceleration in m/s^2 the push plans for the cube. The push force is then m^ (a + mu g) plus
-    M_d a; lower accelerations make the outcome more sensitive to the mass error (the friction term
-    dominates the force) but the push longer."""
-    push_admittance: AdmittanceGains = field(
-        default_factory=lambda: AdmittanceGains(inertia=20.0, stiffness=0.0, damping_ratio=1.0)
-    )
-    """Eq. 7 along the push direction: inertia M_d only (K_d = 0, hence D_d = 0), a force-tracking law.
-    M_d of the order of the cube's mass keeps the loop through the stiff contact slow, so the reaction
-    does not chatter (M_d = 5 kg made the cube bounce on the paddle and rock)."""
-    brake_deceleration: float = 20.0
-    """Deceleration in m/s^2 of the pusher after the push, well above friction's (mu g = 4.9 m/s^2), so
-    the cube leaves the paddle at once and slides free."""
-    contact_height: float = 0.005
-    """Height in m of the paddle's lowest (rear) edge above the desk while pushing: clear of the desk,
-    so the paddle drags nothing but the cube."""
-    tilt: float = 0.1
-    """Pitch in rad of the paddle, lower edge forward: the paddle touches the cube along one edge about
-    a centimetre above the desk, far below the height (about 3.5 cm at the planned forces) above which
-    the push would tip the cube forward."""
-    reach_residual: float = 1e-3
-    """Largest IK position error in m accepted for a layout's tool poses: beyond it the arm cannot place
-    the paddle behind the cube."""
-    settle_time: float = 1.5
-    """Longest time in s the cube is given to come to rest after the push."""
-    rest_speed: float = 1e-3
-    """Speed in m/s below which the cube counts as at rest and the push ends."""
-    layout_attempts: int = 1000
-    """Most random draws `PushingTask.sample_layout` makes before it gives up on the config; the default
-    layout needs a handful."""
-
-    def __post_init__(self) -> None:
-        scene = self.scene
-        check_interval("mass_range", self.mass_range, 0.0, math.inf, low_open=True, unit="kg")
-        # The cube, centred anywhere in the area, stays on the desk.
-        half_x = scene.table_size[0] / 2 - scene.cube_size[0] / 2
-        half_y = scene.table_size[1] / 2 - scene.cube_size[1] / 2
-        check_interval("area_x", self.area_x, -half_x, half_x, unit="m", why=" (the cube stays on the desk)")
-        check_interval("area_y", self.area_y, -half_y, half_y, unit="m", why=" (the cube stays on the desk)")
-        # No start and goal of the area lie further apart than its diagonal.
-        diagonal = math.hypot(self.area_x[1] - self.area_x[0], self.area_y[1] - self.area_y[0])
-        check_interval(
-            "push_distance",
-            self.push_distance,
-            0.0,
-            diagonal,
-            low_open=True,
-            high_open=True,
-            point=True,
-            unit="m",
-            why=" (high below the diagonal of area_x x area_y, as start and goal both lie in the area)",
-        )
-        check_int("layout_attempts", self.layout_attempts, 1)
-        check_range("desk_height", self.desk_height, 0.5, 0.9)
-        check_range("planned_acceleration", self.planned_acceleration, 0.1, 10.0)
-        check_range("brake_deceleration", self.brake_deceleration, 1.0, 100.0)
-        check_range("contact_height", self.contact_height, 0.0, self.scene.cube_size[2])
-        check_range("tilt", self.tilt, 0.0, 0.5)
-        check_range("reach_residual", self.reach_residual, 1e-6, 0.05)
-        check_range("settle_time", self.settle_time, 0.1, 10.0)
-        check_range("rest_speed", self.rest_speed, 1e-5, 0.1)
-        if self.push_admittance.stiffness != 0.0:
-            raise ValueError("push_admittance must have stiffness 0: the push tracks a force, not a position")
+from hipref.validation import check_int, check_parameter
 
 
 @dataclass
@@ -154,12 +68,6 @@ class Push:
     final_error: float
     """Distance in m from the cube's resting place to its goal."""
     success: bool
-
-
-def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rotation matrix by `angle` about the unit vector `axis` (Rodrigues)."""
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
 class PushingTask:
@@ -178,15 +86,12 @@ class PushingTask:
         self.scene.set_desk_height(self.config.desk_height)
         # Plain SPD on the IK reference: the push direction's admittance is run by `push` itself.
         self.controller = ToolController(self.scene, self.config.controller, compliant=False)
-        self._scratch = mujoco.MjData(self.scene.model)
+        self.poses = PaddlePoses(self.config, self.scene, self.controller)
+        """The paddle's pushing poses and the layouts they allow (`hipref.envs.pushing_layout`)."""
         self.start = np.zeros(2)
         self.goal = np.zeros(2)
         self.direction = np.zeros(2)
         self.rotation = tool_down_rotation(0.0)
-        m = self.scene.model
-        # Bodies from the shoulder to the tool: what must not touch the desk at a layout's poses.
-        self._arm_bodies = range(m.body("shoulder_link").id, m.body("tool").id + 1)
-        self._seed = PostureSeed(self.scene)
         kp = np.asarray(self.config.controller.kp)
         kd = np.asarray(self.config.controller.kd)
         self._compliance = 1.0 / kp
@@ -275,80 +180,9 @@ class PushingTask:
 
     # --- layout ---------------------------------------------------------------------------------------
 
-    def _standoff(self) -> float:
-        """Horizontal distance from the cube's centre to the tool tip with the paddle's edge touching."""
-        cfg = self.config
-        return cfg.scene.cube_size[1] / 2 + cfg.scene.tool_size[1] / 2 * math.cos(cfg.tilt)
-
-    def _tool_height(self) -> float:
-        """Height of the tool tip (the centre of the paddle's lower face) while pushing."""
-        cfg = self.config
-        return cfg.desk_height + cfg.contact_height + cfg.scene.tool_size[1] / 2 * math.sin(cfg.tilt)
-
-    def _arm_pose(self, tool_xy: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """Joint positions putting the tool tip at `tool_xy` at pushing height, the paddle's thin side
-        along `direction` and tilted by `tilt`; returns (q, tool rotation, IK position residual in m).
-
-        The paddle is symmetric under a half turn about its axis, so of the two yaws that push along
-        `direction` the one nearer the arm's natural wrist angle is taken; the IK seed turns the shoulder
-        towards the target and the last wrist joint by the yaw, so the damped least-squares iteration
-        stays on START_POSTURE's elbow-up, tool-down branch (a far seed converges to wound-up joints)."""
-        cfg, scene = self.config, self.scene
-        yaw = math.atan2(direction[0], -direction[1])
-        yaw += math.pi * round((self._seed.pan(tool_xy) - yaw) / math.pi)
-        # Tilt about the horizontal axis across the push, so the tool's lower end leads.
-        across = np.array([-direction[1], direction[0], 0.0])
-        rotation = _rotation_about(across, -cfg.tilt) @ tool_down_rotation(yaw)
-        self._scratch.qpos[scene.arm_qpos] = self._seed.seed(tool_xy, yaw)
-        target = np.array([tool_xy[0], tool_xy[1], self._tool_height()])
-        q, residual = self.controller.ik.solve(self._scratch, target, rotation)
-        return wrap_joints(q), rotation, residual
-
-    def _reachable(self, tool_xy: np.ndarray, direction: np.ndarray) -> bool:
-        """Whether the arm reaches the tool pose, on its elbow-up branch inside the joint limits, with no
-        link but the paddle touching anything."""
-        scene = self.scene
-        m, scratch = scene.model, self._scratch
-        q, _, residual = self._arm_pose(tool_xy, direction)
-        if not reached(scene, q, residual, self.config.reach_residual):
-            return False
-        # Shoulder lifted, elbow bent up: the other branches flip through singularities on the way.
-        if not q[1] < 0.0 < q[2]:
-            return False
-        scratch.qpos[scene.arm_qpos] = q
-        scratch.qpos[scene.cube_qpos : scene.cube_qpos + 3] = [0.0, 0.0, -1.0]  # out of the way
-        mujoco.mj_kinematics(m, scratch)
-        mujoco.mj_collision(m, scratch)
-        for contact in scratch.contact[: scratch.ncon]:
-            bodies = {int(m.geom_bodyid[contact.geom1]), int(m.geom_bodyid[contact.geom2])}
-            if any(b in self._arm_bodies for b in bodies) and not all(b in self._arm_bodies for b in bodies):
-                return False
-        return True
-
     def sample_layout(self, rng: np.random.Generator) -> Layout:
-        """A random cube start and goal, both inside the area, with the paddle's poses behind the cube at
-        the start and at the goal both reachable; a config for which `layout_attempts` draws find none is
-        refused, naming the fields that make layouts rare."""
-        cfg = self.config
-        low = np.array([cfg.area_x[0], cfg.area_y[0]])
-        high = np.array([cfg.area_x[1], cfg.area_y[1]])
-        for _ in range(cfg.layout_attempts):
-            start = rng.uniform(low, high)
-            angle = rng.uniform(-np.pi, np.pi)
-            u = np.array([math.cos(angle), math.sin(angle)])
-            goal = start + rng.uniform(*cfg.push_distance) * u
-            if not (np.all(goal >= low) and np.all(goal <= high)):
-                continue
-            behind = u * self._standoff()
-            if self._reachable(start - behind, u) and self._reachable(goal - behind, u):
-                return start, goal
-        raise ValueError(
-            f"no pushing layout found in layout_attempts={cfg.layout_attempts} draws: start and goal must "
-            f"both lie in area_x={cfg.area_x!r} x area_y={cfg.area_y!r} m, "
-            f"push_distance={cfg.push_distance!r} m apart, with the paddle behind the cube reachable at "
-            f"desk_height={cfg.desk_height!r} m within reach_residual={cfg.reach_residual!r} m; widen the "
-            "area, shorten push_distance, or raise layout_attempts"
-        )
+        """A random cube start and goal whose pushing poses the arm reaches (`PaddlePoses.sample_layout`)."""
+        return self.poses.sample_layout(rng)
 
     def reset(self, mass: float, start: np.ndarray, goal: np.ndarray) -> None:
         """Set the cube mass, put the cube at `start` with a face square to the goal, and the paddle's
@@ -362,7 +196,7 @@ class PushingTask:
         if offset.shape != (2,) or not np.all(np.isfinite(offset)) or np.linalg.norm(offset) < 1e-6:
             raise ValueError(f"start and goal must be two distinct points, got {start!r}, {goal!r}")
         u = self.direction = offset / np.linalg.norm(offset)
-        q, self.rotation, _ = self._arm_pose(self.start - u * self._standoff(), u)
+        q, self.rotation, _ = self.poses.arm_pose(self.start - u * self.poses.standoff(), u)
         mujoco.mj_resetData(m, d)
         d.qpos[scene.arm_qpos] = q
         cube = scene.cube_qpos
@@ -447,7 +281,9 @@ class PushingTask:
         h = cfg.scene.timestep
         plan = PushPlan(
             direction=np.array([*self.direction, 0.0]),
-            tool_start=np.array([*(self.start - self.direction * self._standoff()), self._tool_height()]),
+            tool_start=np.array(
+                [*(self.start - self.direction * self.poses.standoff()), self.poses.tool_height()]
+            ),
             rotation=np.array(self.rotation, dtype=float, order="C"),
             compliance=self._compliance,
             lead=self._lead,

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from hipref.envs.pushing import PushingConfig
+from hipref.envs.pushing_config import PushingConfig
 from hipref.envs.wiping import WipingConfig, WipingTask
 from hipref.experiments.domains import domain_spec
 from hipref.results import tidy_rows
