@@ -11,13 +11,11 @@ import torch
 from hipref.learners.coteaching import (
     CoPESIConfig,
     CoPESILearner,
-    CoTeachingPair,
     EstimatedNoiseCoPESILearner,
     SIUpdateRecord,
-    classifier_inputs,
-    coteach_select,
     reset_every_step_schedule,
 )
+from hipref.learners.coteaching_pair import CoTeachingPair, classifier_inputs, coteach_select
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher

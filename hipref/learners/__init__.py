@@ -1,7 +1,8 @@
 """Learners: tabular COACH for the high level; SI pretraining, PESI, CO-PESI and noise estimation below it."""
 
 from hipref.learners.coach import CoachConfig, TabularCoach
-from hipref.learners.coteaching import CoPESIConfig, CoPESILearner, CoTeachingPair, coteach_select
+from hipref.learners.coteaching import CoPESIConfig, CoPESILearner
+from hipref.learners.coteaching_pair import CoTeachingPair, coteach_select
 from hipref.learners.noise_estimation import (
     PreferenceSet,
     conflict_counts,

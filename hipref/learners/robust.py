@@ -28,8 +28,8 @@ from hipref.learners.coteaching import (
     CoPESILearner,
     EstimatedNoiseCoPESILearner,
     SIUpdateRecord,
-    coteach_select,
 )
+from hipref.learners.coteaching_pair import coteach_select
 from hipref.learners.noise_estimation import PreferenceSet
 from hipref.learners.noise_rate import likelihood_noise
 from hipref.learners.pesi import PESIConfig, PESILearner, log_probs, pesi_loss
