@@ -1,7 +1,7 @@
 """The package's floors: each room (a subpackage or a top-level module of hipref) imports only from the
 floors below it, read from the source (imports inside functions and under TYPE_CHECKING included), and what
 a room reaches through the modules it imports (package `__init__`s included) keeps learners free of physics
-and the sweep free of tasks."""
+and the sweep free of tasks. No module holds more than LONGEST_MODULE lines."""
 
 from __future__ import annotations
 
@@ -60,6 +60,9 @@ def room_of(module: str) -> str:
 
 
 SOURCES: dict[str, Path] = {module_name(path): path for path in sorted(PACKAGE.rglob("*.py"))}
+
+LONGEST_MODULE = 400
+"""Most lines a module of hipref may have: past it, a module holds more than one topic and is split."""
 
 
 @cache
@@ -153,3 +156,13 @@ def test_a_room_never_reaches_what_it_must_not(room: str) -> None:
         if any(name == banned or name.startswith(banned + ".") for banned in NEVER[room])
     )
     assert not offending, "\n".join(offending[:20])
+
+
+def test_no_module_is_longer_than_the_longest_allowed() -> None:
+    lengths = {path: len(path.read_text(encoding="utf-8").splitlines()) for path in SOURCES.values()}
+    long = sorted(
+        f"{path.relative_to(PACKAGE.parent)}: {lines} lines"
+        for path, lines in lengths.items()
+        if lines > LONGEST_MODULE
+    )
+    assert not long, f"modules over {LONGEST_MODULE} lines, to split by topic: {long}"
