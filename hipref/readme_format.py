@@ -48,6 +48,8 @@ def csv(results: Path, name: str) -> pd.DataFrame:
 
 UNITS = {"wiping": (" cm", 100.0, 1), "pushing": (" kg", 1.0, 2)}
 """How each domain's parameter error is written: unit, scale from SI units and digits."""
+FINE_UNITS = {"wiping": (" mm", 1000.0, 2), "pushing": (" kg", 1.0, 3)}
+"""How each domain's small differences of error are written (notebook 11's learners against PESI)."""
 
 
 def percent(level: float) -> str:

@@ -12,7 +12,7 @@ from hipref import verdicts
 from hipref.experiments.noise_estimation import overestimate, paper_distance
 from hipref.experiments.r3_copesi import final_difference
 from hipref.experiments.robustness import NOISE_TOLERANCE, best_learner, noise_table
-from hipref.readme_format import UNITS, WORDS, csv, interval, percent, signed
+from hipref.readme_format import FINE_UNITS, UNITS, WORDS, csv, interval, percent, signed
 
 
 def _final(
@@ -128,7 +128,7 @@ def _robust(results: Path) -> dict[str, str]:
         ahead[domain] = max(ahead.get(domain, 0.0), -float(error["mean"]))
         d = verdicts.Difference(error["mean"], error["low"], error["high"], int(error["n"]))
         if verdicts.better(d, lower_is_better=True) == "yes":
-            unit, scale, digits = (" mm", 1000.0, 2) if domain == "wiping" else (" kg", 1.0, 3)
+            unit, scale, digits = FINE_UNITS[domain]
             setting = f"{LEARNERS[learner]} under the {teacher} teacher, {domain}"
             significant.append(f"{setting}: {interval(d, unit, digits, scale)}")
     noise = noise_table(csv(results, "data/11_teachers_and_robustness.csv"))

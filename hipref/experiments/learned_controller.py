@@ -64,6 +64,10 @@ ROW_METRICS: tuple[str, ...] = (
 ROUTES: tuple[str, ...] = ("both", "input", "path")
 """How an estimate reaches a learned stroke: as the input and through the path ('both', what SI's estimate
 does), as the input alone (the path from the truth), or through the path alone (the input the truth)."""
+DOMAIN_ROUTES: dict[str, tuple[str, ...]] = {"wiping": ROUTES, "pushing": ROUTES[:1]}
+"""The routes each domain's learned low level is compared by: a wiping stroke follows a path planned from
+the estimate and is given it as input, so the two can be told apart; a push takes the estimate only as
+input ('both')."""
 RESPONSE_TRAJECTORIES = 10
 """Demonstrations of the last reading on whose states each pi^l's `phi_response` is measured."""
 CURVE_POINTS = 50
@@ -339,7 +343,7 @@ def comparison_cells(config: LearnedControllerConfig) -> list[ComparisonCell]:
     ):
         seeds = tuple(child_seeds([config.comparison_seed, label], config.episodes_per_error))
         held_out = tuple(child_seeds([config.held_out_seed, label], config.held_out_episodes))
-        routes = ROUTES if domain == "wiping" else ROUTES[:1]
+        routes = DOMAIN_ROUTES[domain]
         for error in errors:
             cells.append(ComparisonCell(domain, analytic, float(error), seeds))
             cells += [ComparisonCell(domain, low_level, float(error), seeds) for low_level in learned]
