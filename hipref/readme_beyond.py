@@ -306,6 +306,15 @@ def _constant_guess(results: Path) -> dict[str, str]:
     return out
 
 
+SETTINGS = {
+    "n_trajectories": "{} trajectories",
+    "history": "h = {}",
+    "cut": "slices cut {}",
+    "columns": "columns: {}",
+}
+"""Notebook 13's factors as the README names a setting of each."""
+
+
 def _tau(results: Path) -> dict[str, str]:
     """Notebook 13: a regressor and each OSI reading against the range's middle, and OSI's coverage."""
     table = pd.read_csv(results / "tables" / "13_osi_against_baselines.csv").set_index("domain")
@@ -341,6 +350,17 @@ def _tau(results: Path) -> dict[str, str]:
                     f"{calibration.loc[(domain, column), f'coverage_{round(100 * COVERAGE)}']:.2f}"
                 )
         out[f"tau_{key}"] = _cells(cells)
+    strongest = {}
+    for domain in DOMAINS:
+        r = table.loc[domain]
+        unit, scale, digits = UNITS[domain]
+        osi, best = float(r["osi_nll_more_data_error"]), float(r["strongest_error"])
+        strongest[domain] = (
+            f"{scale * osi:.{digits}f} against {scale * best:.{digits}f}{unit}, {osi / best:.2f} times "
+            f"({REGRESSORS[r['strongest_regressor']]}, "
+            f"{SETTINGS[r['strongest_factor']].format(str(r['strongest_level']).replace('_', ' '))})"
+        )
+    out["tau_strongest"] = _cells(strongest)
     return out
 
 

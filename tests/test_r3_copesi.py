@@ -18,7 +18,15 @@ def test_both_methods_share_every_environment() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("domains", ("kitchen",)), ("noise_levels", (20,)), ("seeds", 0), ("eval_every", 500)],
+    [
+        ("domains", ("kitchen",)),
+        ("noise_levels", (20,)),
+        ("seeds", 0),
+        ("eval_every", 500),
+        ("claim_episodes", (50,)),
+        ("claim_episodes", (99,)),
+        ("claim_episodes", (33, 33)),
+    ],
 )
 def test_a_bad_parameter_is_refused_with_its_name(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=field):
@@ -88,3 +96,16 @@ def test_the_verdict_pairs_runs_by_environment_whatever_the_row_order() -> None:
         final_difference(rows, "wiping", 0.2, "param_error")
     with pytest.raises(ValueError, match="co_pesi_estimated"):
         final_difference(rows, "pushing", 0.2, "param_error", baseline="co_pesi_estimated")
+
+
+def test_a_claim_is_tested_at_the_horizon_it_names() -> None:
+    # CO-PESI better than PESI after 99 episodes, the same as PESI after 33: each horizon gets its own verdict.
+    late = _rows([0.5, 0.6, 0.4, 0.5, 0.45, 0.55], [0.8, 0.9, 0.7, 0.8, 0.75, 0.85])
+    early = late.assign(episode=33)
+    early.loc[early.method == "co_pesi", "value"] = early.loc[early.method == "pesi", "value"].to_numpy()
+    rows = pd.concat([early, late], ignore_index=True)
+    assert verdict(rows, "pushing", 0.2, "better", episode=99)[0] == "yes"
+    assert verdict(rows, "pushing", 0.2, "better")[0] == "yes"
+    held, text = verdict(rows, "pushing", 0.2, "better", episode=33)
+    assert held == "no difference detected" and "after 33 episodes" in text
+    assert R3Config(episodes=66, claim_episodes=(33, 66)).claim_episodes == (33, 66)

@@ -19,7 +19,7 @@ from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_methods import METHODS as SI_METHODS
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_grids, check_range
+from hipref.validation import check_choice, check_grids, check_int, check_range
 from hipref.verdicts import Difference, better_on_both, combine, no_difference, paired_difference
 
 METHODS: tuple[str, ...] = ("pesi", "co_pesi")
@@ -42,10 +42,21 @@ class R3Config(Protocol):
     """True cube masses in kg of the pushing environments, each in [8, 20] (full profile: 5, evenly)."""
     eval_episodes: int = 5
     """Evaluation episodes per evaluation (section 5: 10)."""
+    claim_episodes: tuple[int, ...] = ()
+    """Learning episodes after which the claims of Figs. 3 and 5 are tested, each an evaluated one (the paper
+    gives no horizon; empty: the last evaluation only; the full profile tests 33, 66 and 99)."""
 
     def __post_init__(self) -> None:
         check_grids(self)
         super().__post_init__()
+        evaluated = range(0, self.episodes + 1, self.eval_every)
+        for episode in self.claim_episodes:
+            check_int("claim_episodes", episode, self.eval_every, self.episodes)
+            if episode not in evaluated:
+                raise ValueError(
+                    "claim_episodes must hold evaluated episodes (multiples of eval_every="
+                    f"{self.eval_every} up to episodes={self.episodes}), got {episode}"
+                )
         if not self.domains:
             raise ValueError(f"domains must name at least one of {sorted(DOMAINS)}, got {self.domains!r}")
         for domain in self.domains:
@@ -87,10 +98,12 @@ def final_difference(
     *,
     method: str = "co_pesi",
     baseline: str = "pesi",
+    episode: int | None = None,
     resamples: int = 5000,
     seed: int = 0,
 ) -> tuple[float, float, float, int]:
-    """`method` minus `baseline` at the last evaluation: (mean, low, high, pairs).
+    """`method` minus `baseline` after `episode` learning episodes (None: the last evaluation): (mean, low,
+    high, pairs).
 
     `hipref.verdicts.paired_difference` on the rows of `domain` at `noise`: runs are paired on domain, true
     parameter and seed, the interval is a 95% bootstrap over the pairs, and with one pair the interval is
@@ -99,7 +112,9 @@ def final_difference(
     at = rows[(rows["domain"] == domain) & np.isclose(rows["noise"], noise)]
     if at.empty:
         raise ValueError(f"no rows for domain={domain!r} at noise={noise!r}")
-    d = paired_difference(at, metric=metric, method=method, baseline=baseline, resamples=resamples, seed=seed)
+    d = paired_difference(
+        at, metric=metric, method=method, baseline=baseline, episode=episode, resamples=resamples, seed=seed
+    )
     return d.mean, d.low, d.high, d.n
 
 
@@ -111,16 +126,19 @@ def verdict(
     *,
     method: str = "co_pesi",
     baseline: str = "pesi",
+    episode: int | None = None,
 ) -> tuple[str, str]:
-    """Test '`method` better than `baseline`' or 'no difference' at the final evaluation on both metrics.
+    """Test '`method` better than `baseline`' or 'no difference' on both metrics after `episode` learning
+    episodes (None: the last evaluation); the paper gives no horizon, so notebook 04 tests several.
 
     'better' is `hipref.verdicts.better_on_both` (a lower param_error and a higher success_rate, each 95%
     interval wholly on its better side); 'no difference' is `no_difference` on both metrics (`combine`).
     Returns (verdict, the measured differences as text).
     """
     check_choice("expect", expect, ("better", "no difference"))
+    at = int(rows["episode"].max()) if episode is None else episode
     error, success = (
-        Difference(*final_difference(rows, domain, noise, m, method=method, baseline=baseline))
+        Difference(*final_difference(rows, domain, noise, m, method=method, baseline=baseline, episode=at))
         for m in ("param_error", "success_rate")
     )
     if expect == "better":
@@ -128,7 +146,7 @@ def verdict(
     else:
         held = combine([no_difference(error), no_difference(success)])
     text = (
-        f"{method} - {baseline} at the last evaluation ({error.n} environments): error {error.mean:+.3g} "
+        f"{method} - {baseline} after {at} episodes ({error.n} environments): error {error.mean:+.3g} "
         f"[{error.low:+.3g}, {error.high:+.3g}], "
         f"success {success.mean:+.2f} [{success.low:+.2f}, {success.high:+.2f}]"
     )

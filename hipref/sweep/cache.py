@@ -60,6 +60,9 @@ NOT_IN_ROWS: tuple[str, ...] = (
     "intervals.py",
     "verdicts.py",
     "readme.py",
+    "readme_beyond.py",
+    "readme_format.py",
+    "readme_noise.py",
 )
 """The package's modules no row depends on (benchmarks, notebook parameters, figures, intervals, verdicts,
 the README's numbers): editing them keeps every cached cell."""
