@@ -99,7 +99,7 @@ def test_the_verdict_pairs_runs_by_environment_whatever_the_row_order() -> None:
 
 
 def test_a_claim_is_tested_at_the_horizon_it_names() -> None:
-    # CO-PESI better than PESI after 99 episodes, the same as PESI after 33: each horizon gets its own verdict.
+    # CO-PESI better than PESI after 99 episodes, the same after 33: each horizon gets its own verdict.
     late = _rows([0.5, 0.6, 0.4, 0.5, 0.45, 0.55], [0.8, 0.9, 0.7, 0.8, 0.75, 0.85])
     early = late.assign(episode=33)
     early.loc[early.method == "co_pesi", "value"] = early.loc[early.method == "pesi", "value"].to_numpy()
