@@ -9,7 +9,7 @@ import torch
 
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
-from hipref.teachers.models import EQUAL, SKIP, TEACHER_KINDS, TeacherModel
+from hipref.teachers.models import EQUAL, SKIP, TEACHER_KINDS, TeacherModel, picture_floor
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
 from tests._clips import shown
 
@@ -173,3 +173,18 @@ def test_a_learner_stores_nothing_for_skip_or_equal_and_refuses_other_non_labels
     for bad in (None, "skip", 0, 0.5):
         with pytest.raises(ValueError, match="preference over 2 candidates"):
             learner.tell(learner.ask(shown(FEATURES)), bad)
+
+
+def test_the_myopic_floor_is_the_least_squares_mean_of_correlated_pictures() -> None:
+    # Brute force: the variance of the best unbiased mean of n stationary AR(1) pictures, 1 / (1' S^-1 1).
+    model = TeacherModel("myopic", memory=0.8, glimpse_noise=0.9)
+    spread = 0.9 * math.sqrt(0.2 / 1.8)
+    for n in (2, 3, 17):
+        lags = np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
+        covariance = spread**2 * 0.8**lags
+        brute = 1.0 / (np.ones(n) @ np.linalg.solve(covariance, np.ones(n)))
+        assert picture_floor(model, n) == pytest.approx(math.sqrt(brute), rel=1e-12)
+    # Correlated errors carry less than independent ones: n answers are worth about n (1 - g) / (1 + g).
+    assert picture_floor(model, 400) > spread / math.sqrt(400)
+    with pytest.raises(ValueError, match="myopic"):
+        picture_floor(TeacherModel("mistake"), 10)

@@ -1,27 +1,34 @@
 """What not knowing the teacher's model costs the Bayesian learner (notebook 12's answers part, no physics).
 
 `python -m hipref.bench.model_choice --grid heldout` runs the learner under information gain, told the
-teacher's model and told nothing (every answer model weighed by its marginal likelihood), for the paper's
-teacher at 20 % flips and the graded teachers of notebook 11 (stochastic, myopic, distance), on notebook 12's
-full-profile environments ('study': its five truths x seeds 0-1) or on held-out ones ('heldout': truths it
-does not use x seeds 100-104). It prints `told_against_chosen` (answers to one step of Phi in 90 % of the
-environments, or final errors where the told learner never gets there) and the mean wall time of one run
+teacher's model and told nothing (every answer model weighed by its marginal likelihood), under every teacher
+of notebook 12's claim (the paper's at 0 and 20 % flips, and notebook 11's others without flips), on notebook
+12's full-profile environments ('study': its five truths x seeds 0-1) or on held-out ones ('heldout': truths
+it does not use x seeds 100-104). It prints `told_against_chosen` (answers to one step of Phi in 90 % of the
+environments, or final errors where the told learner never gets there), the myopic teacher's floor (the
+error of the best estimate from its remembered pictures themselves, `picture_floor`, against which no
+learner of its answers can be within one step in 90 % of environments) and the mean wall time of one run
 of each. Nothing is written to disk.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 
 import pandas as pd
+from scipy.stats import norm
 
 from hipref.experiments.answers_to_success import (
+    CONSISTENT,
     AnswersCell,
     answers_to_step,
     run_answers,
     told_against_chosen,
 )
+from hipref.experiments.domains import domain_spec
+from hipref.teachers.models import TeacherModel, picture_floor
 
 STUDY: dict[str, tuple[float, ...]] = {
     "wiping": (0.54, 0.62, 0.7, 0.78, 0.86),
@@ -35,7 +42,15 @@ GRIDS: dict[str, tuple[dict[str, tuple[float, ...]], range]] = {
     "study": (STUDY, range(2)),
     "heldout": (HELDOUT, range(100, 105)),
 }
-TEACHERS = (("mistake", 0.2), ("stochastic", 0.0), ("myopic", 0.0), ("distance", 0.0))
+TEACHERS = (
+    ("mistake", 0.0),
+    ("mistake", 0.2),
+    ("stochastic", 0.0),
+    ("skip", 0.0),
+    ("equal", 0.0),
+    ("myopic", 0.0),
+    ("distance", 0.0),
+)
 
 
 def main() -> None:
@@ -61,8 +76,33 @@ def main() -> None:
     table = told_against_chosen(answers_to_step(rows), rows)
     columns = ["domain", "teacher", "noise", "model", "nothing", "model_error", "nothing_error"]
     print(table[[*columns, "nothing_ratio", "compared"]].to_string(index=False))
+    print(
+        myopic_floor(tuple(truths), args.episodes).to_string(index=False, float_format=lambda v: f"{v:.3g}")
+    )
     for told, times in seconds.items():
         print(f"told {told}: {sum(times) / len(times):.2f} s per run of {args.episodes} answers")
+
+
+def myopic_floor(domains: tuple[str, ...], answers: int) -> pd.DataFrame:
+    """Per domain, the myopic teacher's floor after `answers` answers, in the parameter's unit: the standard
+    deviation of the best estimate from its pictures themselves, the mean |error| of a normal estimate of
+    that spread, the share of environments it puts within one step, and the answers that share needs to
+    reach CONSISTENT (90 %)."""
+    model = TeacherModel("myopic")
+    rows = []
+    for domain in domains:
+        phi = domain_spec(domain).candidates
+        width, step = phi.high - phi.low, phi.resolution / (phi.high - phi.low)
+        sd = picture_floor(model, answers)
+        needed = next(
+            n for n in range(2, 10**6) if picture_floor(model, n) <= step / norm.ppf(0.5 + CONSISTENT / 2)
+        )
+        within = 2.0 * norm.cdf(step / sd) - 1.0
+        rows.append((domain, answers, sd * width, sd * width * math.sqrt(2 / math.pi), within, needed))
+    return pd.DataFrame(
+        rows,
+        columns=["domain", "answers", "floor_sd", "floor_mean_error", "floor_within_step", "answers_needed"],
+    )
 
 
 if __name__ == "__main__":

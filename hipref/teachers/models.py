@@ -53,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hipref.validation import check_choice, check_range
+from hipref.validation import check_choice, check_int, check_range
 
 
 class NoLabel(enum.Enum):
@@ -205,3 +205,20 @@ RULES: dict[str, Rule] = {
 
 TEACHER_KINDS: tuple[str, ...] = tuple(RULES)
 """The teacher models: B-Pref's six (oracle, mistake, stochastic, skip, equal, myopic) and 'distance'."""
+
+
+def picture_floor(model: TeacherModel, answers: int) -> float:
+    """The myopic teacher's limit: the standard deviation, as a fraction of the range, of the best unbiased
+    estimate of phi* from the teacher's remembered pictures m_1..m_n of n consecutive answers themselves
+    (real numbers, where its answers only say on which side of a midpoint the picture lies). The pictures
+    are phi* plus a stationary AR(1) error of spread s = glimpse_noise sqrt((1 - gamma) / (1 + gamma)) and
+    correlation gamma between consecutive answers; the generalised least-squares mean of n of them has
+    variance s^2 (1 - gamma^2) / ((n - 2) (1 - gamma)^2 + 2 (1 - gamma)) (n >= 2), so no learner of the
+    answers can be surer of phi* than this."""
+    if model.kind != "myopic":
+        raise ValueError(f"picture_floor is the myopic teacher's limit, got kind {model.kind!r}")
+    check_int("answers", answers, 2)
+    gamma = model.memory
+    spread = model.glimpse_noise * math.sqrt((1.0 - gamma) / (1.0 + gamma))
+    information = ((answers - 2) * (1.0 - gamma) ** 2 + 2.0 * (1.0 - gamma)) / (1.0 - gamma**2)
+    return spread / math.sqrt(information)
