@@ -24,29 +24,28 @@ endif
 TEMP_RESULTS = tmp=$$(mktemp -d -t hipref-results.XXXXXX) && trap 'rm -rf "$$tmp"' EXIT && \
 	trap 'exit 130' INT TERM && HIPREF_RESULTS_DIR=$$tmp
 
-# $(call execute,PROFILE,RESULTS DIR,OUTPUT DIR,JOBS,[--committed],[NOTEBOOKS]): run the notebooks (every one
-# of NOTEBOOKS if none given) through hipref/run_notebook.py with the profile's parameters, JOBS at a time, its
-# results written to RESULTS DIR and the executed notebook to OUTPUT DIR, replaced only once it has run through
-# and with no absolute path in its outputs; --committed also removes papermill's injected-parameters cell. The
-# first failure stops the rest.
+# $(call execute,PROFILE,RESULTS DIR,OUTPUT DIR,JOBS[,--committed]): run every notebook through
+# hipref/run_notebook.py with the profile's parameters, JOBS at a time, its results written to RESULTS DIR and
+# the executed notebook to OUTPUT DIR, replaced only once it has run through and with no absolute path in its
+# outputs; --committed also removes papermill's injected-parameters cell. The first failure stops the rest.
 define execute
 	mkdir -p $(3)
-	printf '%s\n' $(or $(6),$(NOTEBOOKS)) | xargs -P $(4) -I NOTEBOOK sh -c '\
+	printf '%s\n' $(NOTEBOOKS) | xargs -P $(4) -I NOTEBOOK sh -c '\
 		name=$$(basename NOTEBOOK .ipynb); \
 		HIPREF_RESULTS_DIR=$(abspath $(2)) $(PY) -m hipref.run_notebook $(5) \
 			-f params/$(1)/$$name.yaml NOTEBOOK $(3)/$$name.ipynb || exit 255'
 endef
 
 # Notebooks at a time. The quick profile's are short and spend much of their time starting kernels and
-# workers, so two run side by side (as nbval runs them). The full profile's run in two lanes side by side: the
-# SI studies in order, each reusing the pretrained models, learning clips and evaluation episodes the ones before
-# it built rather than building them at the same time; and beside them the notebooks that share nothing with
-# them (SIDE_LANE), which take up the cores the first lane leaves idle (kernel start-up, figures, the tail of
-# each sweep). A failure stops its lane; the other runs to its end.
+# workers, so two run side by side (as nbval runs them); the full profile's run in order, each reusing the
+# learning clips and evaluation episodes the ones before it built rather than building them at the same time.
+ifeq ($(PROFILE),full)
+JOBS := 1
+else
 JOBS := 2
-SIDE_LANE := notebooks/01_r1_feedback.ipynb notebooks/05_controllers.ipynb notebooks/10_learned_controller.ipynb
+endif
 
-.PHONY: help install reproduce reproduce-studies reproduce-side notebooks test lint typecheck pytest nbval lab bench readme readme-check
+.PHONY: help install reproduce notebooks test lint typecheck pytest nbval lab bench readme readme-check
 
 # A bare `make` lists the targets; every other target installs first what it needs.
 .DEFAULT_GOAL := help
@@ -77,21 +76,9 @@ $(VENV)/.installed: environment.txt pyproject.toml
 	$(PY) -m ipykernel install --sys-prefix --name hipref --display-name "Python (hipref)" >/dev/null
 	touch $@
 
-# Execute every notebook with the chosen profile's parameters into $(RESULTS)/notebooks/: the full profile in
-# its two lanes, any other JOBS at a time.
-ifeq ($(PROFILE),full)
-reproduce: install
-	$(MAKE) --no-print-directory -j2 reproduce-studies reproduce-side
-else
+# Execute every notebook with the chosen profile's parameters (JOBS at a time) into $(RESULTS)/notebooks/.
 reproduce: install
 	$(call execute,$(PROFILE),$(RESULTS),$(RESULTS)/notebooks,$(JOBS))
-endif
-
-reproduce-studies:
-	$(if $(filter-out $(SIDE_LANE),$(NOTEBOOKS)),$(call execute,full,results,results/notebooks,1,,$(filter-out $(SIDE_LANE),$(NOTEBOOKS))),@:)
-
-reproduce-side:
-	$(if $(filter $(SIDE_LANE),$(NOTEBOOKS)),$(call execute,full,results,results/notebooks,1,,$(filter $(SIDE_LANE),$(NOTEBOOKS))),@:)
 
 # Re-execute the committed notebooks in place at the quick profile (what nbval checks), without papermill's
 # injected-parameters cell: the parameters cell's defaults are the quick profile. Results to results/quick/.
