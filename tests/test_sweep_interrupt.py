@@ -54,8 +54,13 @@ def stuck_sweep(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[bytes], list[
     log_dir.mkdir()
     stderr = tmp_path / "stderr.txt"
     with stderr.open("wb") as sink:
+        # SIGINT's default action in the child, as in a notebook kernel: a process that ignores SIGINT (a
+        # pytest-xdist worker may) passes that on to its children, and the interrupt would never arrive.
         sweep = subprocess.Popen(
-            [sys.executable, "-m", "tests._sweep_cells", "--stuck", str(log_dir)], cwd=REPO, stderr=sink
+            [sys.executable, "-m", "tests._sweep_cells", "--stuck", str(log_dir)],
+            cwd=REPO,
+            stderr=sink,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
     descendants: list[psutil.Process] = []
     try:
