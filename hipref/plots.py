@@ -13,6 +13,7 @@ METHOD_LABELS = {
     "pesi_ce": "PESI, standard CE",
     "co_pesi": "CO-PESI",
     "co_pesi_estimated": "CO-PESI, estimated noise",
+    "co_pesi_estimated_same_pair": "CO-PESI, estimated noise (same-pair conflicts)",
     "spd": "SPD",
     "admittance": "Admittance",
     "constant_middle": "Range middle (constant)",

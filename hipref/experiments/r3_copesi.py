@@ -33,7 +33,7 @@ class R3Config(Protocol):
     domains: tuple[str, ...] = ("wiping", "pushing")
     """Domains to run: 'wiping' (Fig. 3, desk height) and 'pushing' (Fig. 5, cube mass)."""
     methods: tuple[str, ...] = METHODS
-    """Methods compared; Figs. 8 and 9 add 'co_pesi_estimated' (A.9)."""
+    """Methods compared; Figs. 8 and 9 add 'co_pesi_estimated' and 'co_pesi_estimated_same_pair' (A.9)."""
     noise_levels: tuple[float, ...] = (0.1, 0.2, 0.3)
     """Fractions of flipped preferences (section 5: 10, 20 and 30%)."""
     heights: tuple[float, ...] = (0.6,)

@@ -70,6 +70,9 @@ LEARNERS: dict[str, LearnerBuilder] = {
     "co_pesi_estimated": lambda cell, model, common, seed: EstimatedNoiseCoPESILearner(
         model, _coteaching_config(cell, common), seed
     ),
+    "co_pesi_estimated_same_pair": lambda cell, model, common, seed: EstimatedNoiseCoPESILearner(
+        model, _coteaching_config(cell, common), seed, conflict="same_pair"
+    ),
     "pesi_smoothed": lambda cell, model, common, seed: LabelSmoothingPESILearner(
         model, _robust_config(cell, common), seed
     ),
@@ -94,12 +97,14 @@ LEARNERS: dict[str, LearnerBuilder] = {
 }
 """Every method by name. osi: pretrained, no preferences; pesi: Eq. 2/3; pesi_ce: standard cross-entropy
 (A.8); co_pesi: Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level
-estimated by Algorithm 5 from the preferences so far (A.9). Beyond the paper (`hipref.learners.robust`):
-pesi_smoothed: label smoothing of Eq. 2 (conservative); pesi_unbiased: the unbiased loss with the estimated
-flip rate; pesi_small_loss: SI's own small-loss filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood:
-Algorithm 1 with the maximum marginal likelihood flip rate; bayes: the exact posterior over phi from every
-answer (`hipref.learners.bayes`), its model of the teacher chosen by marginal likelihood unless told;
-bayes_si: that posterior times SI's Pr(phi | tau) on the slice estimated from, so OSI's knowledge is kept."""
+estimated by Algorithm 5 from the preferences so far (A.9), a conflict read as 'no parameter satisfies
+both'; co_pesi_estimated_same_pair: the same with a conflict read as opposite answers to the same pair.
+Beyond the paper (`hipref.learners.robust`): pesi_smoothed: label smoothing of Eq. 2 (conservative);
+pesi_unbiased: the unbiased loss with the estimated flip rate; pesi_small_loss: SI's own small-loss
+filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood: Algorithm 1 with the maximum marginal
+likelihood flip rate; bayes: the exact posterior over phi from every answer (`hipref.learners.bayes`), its
+model of the teacher chosen by marginal likelihood unless told; bayes_si: that posterior times SI's Pr(phi
+| tau) on the slice estimated from, so OSI's knowledge is kept."""
 
 METHODS: tuple[str, ...] = tuple(LEARNERS)
 """The methods' names, in LEARNERS' order."""

@@ -15,7 +15,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from hipref.learners.coteaching_pair import CoTeachingPair, classifier_inputs
-from hipref.learners.noise_estimation import PreferenceSet, estimate_noise
+from hipref.learners.noise_estimation import CONFLICTS, DEFAULT_CONFLICT, PreferenceSet, estimate_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
 from hipref.seeds import integer_seed
@@ -302,11 +302,22 @@ class EstimatedNoiseCoPESILearner(CoPESILearner):
     of a PreferenceSet; a run has one environment, so all of them describe the same true parameter, as
     Algorithm 5 assumes. The estimate is taken as written: with no conflicts at all it is 1.0, which
     CoPESILearner caps at keeping one sample per batch. `noise_history` keeps every estimate.
+
+    `conflict` is Algorithm 5's reading of a conflict (`hipref.learners.noise_estimation.CONFLICTS`); the
+    paper does not say which one Figs. 8-9 used, so notebook 06 runs both.
     """
 
-    def __init__(self, model: SIModel, config: CoPESIConfig | None = None, seed: int = 0) -> None:
+    def __init__(
+        self,
+        model: SIModel,
+        config: CoPESIConfig | None = None,
+        seed: int = 0,
+        conflict: str = DEFAULT_CONFLICT,
+    ) -> None:
+        check_choice("conflict", conflict, CONFLICTS)
         # The starting level is never used: the first co-teaching preference re-estimates it from D.
         super().__init__(model, 0.0, config, seed)
+        self.conflict = conflict
         self.noise_history: list[float] = []
 
     def buffer_preferences(self) -> PreferenceSet:
@@ -318,6 +329,6 @@ class EstimatedNoiseCoPESILearner(CoPESILearner):
 
     def _learn(self) -> None:
         if len(self) > self.config.start_size:
-            self.noise_level = estimate_noise(self.buffer_preferences())
+            self.noise_level = estimate_noise(self.buffer_preferences(), self.conflict)
             self.noise_history.append(self.noise_level)
         super()._learn()
