@@ -136,9 +136,14 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         run_all(page)
         preferences = page.locator(".hipref-preferences")
         preferences.get_by_text("Query 1 of 3").wait_for(timeout=240_000)
-        preferences.get_by_role("button", name="◀ left").click()
+        preferences.get_by_role("button", name="◀ left").dblclick()  # a double click answers one query
         preferences.get_by_text("Query 2 of 3").wait_for(timeout=60_000)
+        preferences.get_by_role("button", name="◀ left").wait_for(timeout=60_000)  # live again
+        assert [a["answer"] for a in answers(results)] == ["left"]
+        page.mouse.move(0, 0)
+        assert preferences.locator(".hipref-keys-off").is_visible()  # the widget says the keys are off
         preferences.hover()
+        assert preferences.locator(".hipref-keys-on").is_visible()
         page.keyboard.press("ArrowRight")  # the hotkey, with the mouse over the clips
         preferences.get_by_text("Query 3 of 3").wait_for(timeout=60_000)
         assert [a["answer"] for a in wait_answers(results, 2)] == ["left", "right"]
@@ -160,7 +165,7 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         preferences.get_by_role("button", name="can't tell ▼").click()
         preferences.get_by_text("All 3 preference queries answered").wait_for(timeout=60_000)
         feedback = page.locator(".hipref-feedback")
-        feedback.get_by_text("Step 2 of 2").wait_for(timeout=60_000)
+        feedback.get_by_role("button", name="−1 bad").wait_for(timeout=60_000)
         feedback.hover()
         page.keyboard.press("-")
         feedback.get_by_text("Feedback episode over").wait_for(timeout=60_000)

@@ -42,6 +42,7 @@ def measure(domain: str, truth: float, queries: int, watch: float) -> dict[str, 
         sizes.append(len(shown.animation or b""))
         time.sleep(watch)
         label = teacher.answer(shown.query)
+        app.wait_ready()  # the widget takes presses once the pair has been on screen for SETTLE_SECONDS
         app.press(shown.side_of(0 if label == 1 else 1))  # waits for the next query if it is not ready
     app.teaching.close()
     cold = []
