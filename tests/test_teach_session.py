@@ -16,6 +16,7 @@ import pytest
 import torch
 
 from hipref.learners.bayes import BayesLearner
+from hipref.learners.sysid import DESK_HEIGHT
 from hipref.teach import open_session
 from hipref.teach.answers import learner_estimates, per_participant
 from hipref.teach.app import (
@@ -28,7 +29,8 @@ from hipref.teach.app import (
 from hipref.teach.config import TeachConfig
 from hipref.teach.dataset import read_sessions
 from hipref.teach.feedback import FeedbackTeaching
-from hipref.teach.preferences import PreferenceTeaching
+from hipref.teach.participant import ParticipantApp
+from hipref.teach.preferences import PreferenceTeaching, catch_pair
 from hipref.teach.recorded import RecordedPreferenceTeacher, replay, summary
 from hipref.teach.session import AnswerRefused, SessionFile, SessionLocked, SessionUnwritable
 
@@ -188,7 +190,9 @@ CRASHING_SESSION = textwrap.dedent(
     from hipref.teach import open_session
     from hipref.teach.config import TeachConfig
     from hipref.teach.feedback import FeedbackTeaching
-    from hipref.teach.preferences import PreferenceTeaching
+    from hipref.learners.sysid import DESK_HEIGHT
+from hipref.teach.participant import ParticipantApp
+from hipref.teach.preferences import PreferenceTeaching, catch_pair
     config = TeachConfig(**{small})
     session = open_session(config)
     preferences = PreferenceTeaching(config, session, render=False)
@@ -474,3 +478,65 @@ def test_a_finished_session_reopens_to_its_summary(results):
     assert summary(reopened, config)["answers"] == 2
     assert len(lines(reopened.path)) == 1 + 2 + 2
     preferences.teaching.close()
+
+
+def test_catch_trials_are_flagged_and_not_told_to_the_learner(results):
+    config = TeachConfig(**{**SMALL, "preference_queries": 4, "catch_every": 2})
+    session = open_session(config)
+    app = PreferenceApp(PreferenceTeaching(config, session, render=False))
+    answer_preferences_as_scripted(app, noise=0.0, seed=0)
+    app.teaching.close()
+    records = lines(session.path)[1:]
+    assert [r["catch"] for r in records] == [False, True, False, True]
+    near, far = catch_pair(DESK_HEIGHT, config.true_parameter)
+    assert (near, far) == (0.7, 0.9)  # the truth against the range's end farthest from it (0.9 on a tie)
+    assert all(r["candidates"] == [near, far] for r in records if r["catch"])
+    assert all(r["label"] == 1 for r in records if r["catch"])  # the stand-in without flips: the truth
+    # The learner heard only the learner's queries: the file without its catch trials rebuilds it.
+    assert same_learner(app.teaching.learner, replay(config, [r for r in records if not r["catch"]], "bayes"))
+    resumed = PreferenceTeaching(config, open_session(config), render=False)
+    assert same_learner(resumed.learner, app.teaching.learner)
+    resumed.close()
+    table = read_sessions(session.path.parent)
+    assert table["catch_trial"].tolist() == [False, True, False, True]
+
+
+def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(results):
+    config = TeachConfig(
+        **{**SMALL, "preference_queries": 2, "catch_every": 2},
+        participant="P1",
+        conditions=("uniform", "information_gain"),
+    )
+    app = ParticipantApp(config, render=False)
+    text = app.widget.children[0].value
+    assert "height of the desk" in text and "4 pairs in 2 part(s)" in text
+    app.widget.children[1].click()  # start the practice
+    shown = app.practice.teaching.current
+    assert shown.catch and shown.query.candidates == (0.7, 0.9)
+    app.practice.press_as_scripted(shown.side_of(1))  # the wrong clip
+    assert "Not quite" in app.widget.children[0].value and "too high (0.9 m instead of 0.7 m)" in (
+        app.widget.children[0].value
+    )
+    app.widget.children[1].click()
+    for part in range(2):
+        assert f"Part {part + 1} of 2" in app.widget.children[0].value
+        condition = app.apps[part]
+        while (query := condition.teaching.current) is not None:
+            condition.press_as_scripted(query.side_of(0))
+        if part == 0:
+            assert "Part 1 of 2 done" in app.widget.children[0].value
+            app.widget.children[1].click()
+    assert "Thank you" in app.widget.children[0].value
+    assert "All 4 answers are saved" in app.widget.children[0].value
+    sessions = results / "sessions"
+    for rule in config.conditions:
+        header, *answers = lines(sessions / f"participant_P1_{rule}.jsonl")
+        assert header["participant"] == "P1" and header["conditions"] == ["uniform", "information_gain"]
+        assert header["query_rule"] == rule and [a["catch"] for a in answers] == [False, True]
+    table = read_sessions(sessions)  # the practice pair is not in the dataset of answers
+    assert set(table["participant"]) == {"P1"} and len(table) == 4
+    assert lines(sessions / "practice" / "participant_P1_practice.jsonl")[1]["answer"] == shown.side_of(1)
+    # Coming back, the finished conditions are skipped to the closing screen.
+    again = ParticipantApp(config, render=False)
+    again._start_condition(0)
+    assert "Thank you" in again.widget.children[0].value
