@@ -190,9 +190,7 @@ CRASHING_SESSION = textwrap.dedent(
     from hipref.teach import open_session
     from hipref.teach.config import TeachConfig
     from hipref.teach.feedback import FeedbackTeaching
-    from hipref.learners.sysid import DESK_HEIGHT
-from hipref.teach.participant import ParticipantApp
-from hipref.teach.preferences import PreferenceTeaching, catch_pair
+    from hipref.teach.preferences import PreferenceTeaching
     config = TeachConfig(**{small})
     session = open_session(config)
     preferences = PreferenceTeaching(config, session, render=False)

@@ -248,8 +248,8 @@ def main(argv: list[str] | None = None) -> None:
             root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
         )
         print(f"participant {args.participant}: http://127.0.0.1:{args.port}/", flush=True)
-        with contextlib.suppress(KeyboardInterrupt):  # the researcher stops the server
-            subprocess.run(voila_command(view, args.port), check=True)
+        with contextlib.suppress(KeyboardInterrupt):  # the researcher stops the server (Ctrl-C)
+            subprocess.run(voila_command(view, args.port), check=False)
 
 
 if __name__ == "__main__":
