@@ -45,7 +45,7 @@ else
 JOBS := 2
 endif
 
-.PHONY: help install reproduce notebooks test lint typecheck pytest nbval lab bench readme readme-check
+.PHONY: help install reproduce notebooks test lint typecheck pytest nbval lab teach bench readme readme-check
 
 # A bare `make` lists the targets; every other target installs first what it needs.
 .DEFAULT_GOAL := help
@@ -61,6 +61,7 @@ help:
 	@echo 'make pytest                   the tests of tests/ on every core (about 2 min)'
 	@echo 'make nbval                    checks the outputs of the committed notebooks (about 4 min)'
 	@echo 'make lab                      JupyterLab on notebooks/'
+	@echo 'make teach PARTICIPANT=P01    notebook 09 for participant P01 with Voila, no code: http://127.0.0.1:8866/'
 	@echo 'make bench                    the benchmarks of hipref/bench/, printing their figures'
 	@echo 'make readme                   the findings of README.md rewritten from the committed results/ (seconds)'
 	@echo 'make readme-check             checks the findings of README.md against the committed results/ (seconds)'
@@ -112,6 +113,15 @@ nbval: install
 
 lab: install
 	$(VENV)/bin/jupyter lab --ServerApp.allow_root=True notebooks
+
+# Participant mode: notebook 09's participant cells served with Voila (hipref/teach/participant.py); the
+# conditions' query rules in the order the participant meets them, catch trials every CATCH_EVERY queries.
+PARTICIPANT ?=
+CONDITIONS ?= uniform information_gain
+CATCH_EVERY ?= 4
+teach: install
+	@test -n "$(PARTICIPANT)" || { echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
+	$(PY) -m hipref.teach.participant $(PARTICIPANT) --conditions $(CONDITIONS) --catch-every $(CATCH_EVERY)
 
 bench: install
 	$(PY) -m hipref.bench.physics

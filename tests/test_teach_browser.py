@@ -8,6 +8,7 @@ is the README's (`results_dir()/figures/09_teach_browser.png`).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -72,20 +73,9 @@ def person_notebook(directory: Path) -> Path:
     return path
 
 
-@pytest.fixture
-def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
-    """A JupyterLab server on loopback over a folder with the person's notebook; (url, results dir)."""
-    if CHROMIUM is None or sync_playwright is None:
-        pytest.skip("no browser: Debian's chromium or Playwright's Python client is not installed")
-    person_notebook(tmp_path)
-    port, token = free_port(), "hipref-test"
-    results = tmp_path / "results"
-    env = {**os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
-    command = [
-        sys.executable, "-m", "jupyterlab", "--no-browser", f"--port={port}", "--ip=127.0.0.1",
-        f"--ServerApp.token={token}", f"--ServerApp.root_dir={tmp_path}", "--allow-root",
-        "--LabApp.news_url=", "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
-    ]  # fmt: skip
+@contextlib.contextmanager
+def serving(command: list[str], port: int, env: dict[str, str]) -> Iterator[None]:
+    """A server started by `command`, once it listens on `port`; stopped afterwards."""
     server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
@@ -95,14 +85,36 @@ def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
                     break
             time.sleep(0.3)
         else:
-            pytest.fail("JupyterLab did not start within 60 s")
-        yield f"http://127.0.0.1:{port}/lab/tree/09_teach.ipynb?token={token}", results
+            pytest.fail(f"{command[2]} did not start within 60 s")
+        yield
     finally:
         server.terminate()
         try:
             server.wait(timeout=20)
         except subprocess.TimeoutExpired:
             server.kill()
+
+
+def browser_available() -> None:
+    if CHROMIUM is None or sync_playwright is None:
+        pytest.skip("no browser: Debian's chromium or Playwright's Python client is not installed")
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
+    """A JupyterLab server on loopback over a folder with the person's notebook; (url, results dir)."""
+    browser_available()
+    person_notebook(tmp_path)
+    port, token = free_port(), "hipref-test"
+    results = tmp_path / "results"
+    env = {**os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
+    command = [
+        sys.executable, "-m", "jupyterlab", "--no-browser", f"--port={port}", "--ip=127.0.0.1",
+        f"--ServerApp.token={token}", f"--ServerApp.root_dir={tmp_path}", "--allow-root",
+        "--LabApp.news_url=", "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
+    ]  # fmt: skip
+    with serving(command, port, env):
+        yield f"http://127.0.0.1:{port}/lab/tree/09_teach.ipynb?token={token}", results
 
 
 def run_all(page: Page) -> None:
@@ -136,9 +148,14 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         run_all(page)
         preferences = page.locator(".hipref-preferences")
         preferences.get_by_text("Query 1 of 3").wait_for(timeout=240_000)
-        preferences.get_by_role("button", name="◀ left").click()
+        preferences.get_by_role("button", name="◀ left").dblclick()  # a double click answers one query
         preferences.get_by_text("Query 2 of 3").wait_for(timeout=60_000)
+        preferences.get_by_role("button", name="◀ left").wait_for(timeout=60_000)  # live again
+        assert [a["answer"] for a in answers(results)] == ["left"]
+        page.mouse.move(0, 0)
+        assert preferences.locator(".hipref-keys-off").is_visible()  # the widget says the keys are off
         preferences.hover()
+        assert preferences.locator(".hipref-keys-on").is_visible()
         page.keyboard.press("ArrowRight")  # the hotkey, with the mouse over the clips
         preferences.get_by_text("Query 3 of 3").wait_for(timeout=60_000)
         assert [a["answer"] for a in wait_answers(results, 2)] == ["left", "right"]
@@ -160,7 +177,7 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         preferences.get_by_role("button", name="can't tell ▼").click()
         preferences.get_by_text("All 3 preference queries answered").wait_for(timeout=60_000)
         feedback = page.locator(".hipref-feedback")
-        feedback.get_by_text("Step 2 of 2").wait_for(timeout=60_000)
+        feedback.get_by_role("button", name="−1 bad").wait_for(timeout=60_000)
         feedback.hover()
         page.keyboard.press("-")
         feedback.get_by_text("Feedback episode over").wait_for(timeout=60_000)
@@ -174,3 +191,58 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         ("feedback", -1),
     ]
     assert shot.stat().st_size > 10_000
+
+
+PARTICIPANT = {
+    "teacher": "person",
+    "participant": "P7",
+    "conditions": ["uniform"],
+    "preference_queries": 2,
+    "catch_every": 2,
+    "n_trajectories": 8,
+    "pretrain_steps": 20,
+}
+"""A participant's short session (one condition, two queries, the second a catch trial), small SI model."""
+
+
+@pytest.mark.slow
+def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
+    browser_available()
+    from hipref.teach.participant import participant_view, voila_command
+
+    view = participant_view(ROOT / "notebooks" / "09_teach.ipynb", PARTICIPANT, tmp_path / "teach.ipynb")
+    port, results = free_port(), tmp_path / "results"
+    env = {**os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
+    flags = ["--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
+    with serving(voila_command(view, port), port, env), sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=flags)
+        page = browser.new_page(viewport={"width": 1100, "height": 1200})
+        page.goto(f"http://127.0.0.1:{port}/")
+        screen = page.locator(".hipref-participant")
+        screen.get_by_text("Teach a robot").wait_for(timeout=120_000)
+        screen.get_by_role("button", name="Start the practice pair").click()
+        screen.get_by_text("Query 1 of 1").wait_for(timeout=240_000)
+        screen.get_by_role("button", name="◀ left").click()
+        screen.get_by_text("clip was the better one").wait_for(timeout=60_000)
+        screen.get_by_role("button", name="Start", exact=True).click()
+        for query in (1, 2):
+            screen.get_by_text(f"Query {query} of 2").wait_for(timeout=120_000)
+            screen.get_by_role("button", name="right ▶").click()
+        screen.get_by_text("Thank you").wait_for(timeout=60_000)
+        # Not a line of code on the page: no input area, no editor, no cell prompt.
+        assert (
+            page.locator(".jp-InputArea, .jp-Editor, .cm-editor, .CodeMirror, .jp-InputPrompt").count() == 0
+        )
+        assert "participant_screen" not in page.content()
+        browser.close()
+    sessions = results / "sessions"
+    header, *stored = [
+        json.loads(line) for line in (sessions / "participant_P7_uniform.jsonl").read_text().splitlines()
+    ]
+    assert header["participant"] == "P7" and header["query_rule"] == "uniform"
+    assert [(a["query"], a["answer"], a["catch"]) for a in stored] == [
+        (0, "right", False),
+        (1, "right", True),
+    ]
+    practice = (sessions / "practice" / "participant_P7_practice.jsonl").read_text().splitlines()
+    assert json.loads(practice[1])["answer"] == "left"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import signal
@@ -15,9 +16,11 @@ import pytest
 import torch
 
 from hipref.learners.bayes import BayesLearner
+from hipref.learners.sysid import DESK_HEIGHT
 from hipref.teach import open_session
 from hipref.teach.answers import learner_estimates, per_participant
 from hipref.teach.app import (
+    PREPARING,
     FeedbackApp,
     PreferenceApp,
     answer_feedback_as_scripted,
@@ -26,9 +29,10 @@ from hipref.teach.app import (
 from hipref.teach.config import TeachConfig
 from hipref.teach.dataset import read_sessions
 from hipref.teach.feedback import FeedbackTeaching
-from hipref.teach.preferences import PreferenceTeaching
+from hipref.teach.participant import ParticipantApp
+from hipref.teach.preferences import PreferenceTeaching, catch_pair
 from hipref.teach.recorded import RecordedPreferenceTeacher, replay, summary
-from hipref.teach.session import SessionFile
+from hipref.teach.session import AnswerRefused, SessionFile, SessionLocked, SessionUnwritable
 
 SMALL = dict(n_trajectories=8, pretrain_steps=20, preference_queries=6, feedback_steps=4, teacher="person")
 """A session on a small SI model, so the tests do not wait for Algorithm 4 at the study's scale."""
@@ -254,13 +258,20 @@ def test_the_widgets_answer_by_button_and_by_key(results):
     config = TeachConfig(**SMALL)
     session = open_session(config)
     preferences = PreferenceApp(PreferenceTeaching(config, session, render=False), reveal_truth=True)
+    preferences.settle = 0.0
+    preferences.wait_ready()
     preferences.buttons["left"].click()
     preferences._on_key({"type": "keydown", "key": "ArrowRight"})
     preferences._on_key({"type": "keydown", "key": "s"})
     preferences._on_key({"type": "keydown", "key": "q"})  # not an answer key: ignored
     assert [r["answer"] for r in session.of_kind("preference")] == ["left", "right", "cant_tell"]
     assert preferences.progress.value == 3 and "error" in preferences.status.value
+    # The widget says whether the keys answer: ipyevents marks it `ipyevents-watched` while it has the focus.
+    hint = preferences.keys_hint.value
+    assert ".ipyevents-watched .hipref-keys-on{display:inline}" in hint and "keys off: point at" in hint
     feedback = FeedbackApp(FeedbackTeaching(config, session))
+    feedback.settle = 0.0
+    feedback.wait_ready()
     feedback.buttons[1].click()
     feedback._on_key({"type": "keydown", "key": "-"})
     feedback._on_key({"type": "keydown", "key": "0"})
@@ -305,3 +316,225 @@ def test_before_and_after_executes_the_task_with_both_estimates(results):
     assert outcome["error_before"] == pytest.approx(abs(0.7 - 0.62))
     assert {outcome["success_before"], outcome["success_after"]} <= {0.0, 0.5, 1.0}
     teaching.close()
+
+
+def test_every_answer_names_its_query_and_a_second_answer_to_one_is_refused(results, tmp_path):
+    path = tmp_path / "s.jsonl"
+    session = SessionFile(path, {"seed": 0})
+    session.append({"kind": "preference", "query": 0})
+    with pytest.raises(AnswerRefused, match="query 0 already has an answer"):
+        session.append({"kind": "preference", "query": 0})
+    with pytest.raises(AnswerRefused, match="the next unanswered query is 1"):
+        session.append({"kind": "preference", "query": 2})
+    session.append({"kind": "feedback", "step": 0})  # each kind numbers its own queries
+    assert [(r["kind"], r.get("query", r.get("step"))) for r in lines(path)[1:]] == [
+        ("preference", 0),
+        ("feedback", 0),
+    ]
+    session.close()
+    # A file two writers spoiled (two answers to one query) is refused with its line named.
+    with path.open("a") as file:
+        file.write(json.dumps({"kind": "preference", "query": 0}) + "\n")
+    with pytest.raises(ValueError, match="line 4: preference query 0 already has an answer"):
+        SessionFile(path, {"seed": 0})
+    # Two live sessions of one file in one kernel: the answer of the one left behind is refused.
+    config = TeachConfig(**SMALL)
+    session = open_session(config)
+    first = PreferenceTeaching(config, session, render=False)
+    second = PreferenceTeaching(config, session, render=False)
+    first.answer("left", 1.0)
+    with pytest.raises(AnswerRefused, match="query 0 already has an answer"):
+        second.answer("right", 1.0)
+    assert [r["query"] for r in lines(session.path)[1:]] == [0]
+    for teaching in (first, second):
+        teaching.close()
+
+
+HOLDER = textwrap.dedent(
+    """
+    import sys, time
+    from hipref.teach.session import AnswerRefused, SessionFile, SessionLocked, SessionUnwritable
+    session = SessionFile(sys.argv[1], {{"seed": 0}})
+    print("open", flush=True)
+    time.sleep(60)
+    """
+)
+
+
+@pytest.mark.slow
+def test_a_second_writer_of_a_session_file_is_refused_naming_the_first(tmp_path):
+    path = tmp_path / "s.jsonl"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLDER.format(), str(path)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        with pytest.raises(SessionLocked, match=f"open in another live session \\(pid {holder.pid} on host "):
+            SessionFile(path, {"seed": 0})
+    finally:
+        holder.kill()
+        holder.wait()
+    # Its process gone, the lock goes with it.
+    session = SessionFile(path, {"seed": 0})
+    session.append({"kind": "feedback", "step": 0})
+    # In one process the newer session of a file takes it over; the older one writes no more.
+    newer = SessionFile(path, {"seed": 0})
+    with pytest.raises(SessionLocked, match="a newer session of this file was opened"):
+        session.append({"kind": "feedback", "step": 1})
+    newer.append({"kind": "feedback", "step": 1})
+    assert [r["step"] for r in lines(path)[1:]] == [0, 1]
+
+
+def test_a_failed_write_is_shown_in_the_widget_and_raised_by_the_stand_in(results, monkeypatch):
+    config = TeachConfig(**SMALL)
+    session = open_session(config)
+    app = PreferenceApp(PreferenceTeaching(config, session, render=False))
+    app.settle = 0.0
+    assert app.wait_ready(timeout=5)
+    original = session.append
+
+    def full(record):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(session, "append", full)
+    shown = app.teaching.current
+    app.buttons["left"].click()
+    assert "not saved" in app.message.value and "No space left" in app.message.value
+    assert not any(b.disabled for b in app.buttons.values())  # live for another try
+    assert app.teaching.current is shown and lines(session.path)[1:] == []
+    monkeypatch.setattr(session, "append", original)
+    app.buttons["left"].click()  # the retry is recorded, the message gone
+    assert [r["answer"] for r in lines(session.path)[1:]] == ["left"] and app.message.value == ""
+    monkeypatch.setattr(session, "append", full)
+    with pytest.raises(OSError, match="No space left"):  # the stand-in stops rather than pressing forever
+        answer_preferences_as_scripted(app, noise=0.0, seed=0)
+    app.teaching.close()
+
+
+def test_an_unwritable_session_file_is_refused_before_the_first_query(results, monkeypatch):
+    config = TeachConfig(**SMALL)
+    open_session(config).close()
+    real_open = os.open
+
+    def read_only(path, flags, *args):
+        if str(path).endswith(".jsonl") and flags & os.O_WRONLY:
+            raise PermissionError(errno.EACCES, "Permission denied")
+        return real_open(path, flags, *args)
+
+    monkeypatch.setattr(os, "open", read_only)
+    refused = "cannot be written \\(Permission denied\\): no answer could be saved"
+    with pytest.raises(SessionUnwritable, match=refused):
+        open_session(config)
+
+
+def test_presses_while_a_pair_is_prepared_or_settling_are_ignored(results, monkeypatch):
+    config = TeachConfig(**SMALL)
+    session = open_session(config)
+    app = PreferenceApp(PreferenceTeaching(config, session, render=False))
+    assert all(b.disabled for b in app.buttons.values())  # the first pair settles too
+    app.press("left")
+    assert app.ignored == 1 and lines(session.path)[1:] == []
+    assert app.wait_ready(timeout=5)
+    seen = []
+    answer = app.teaching.answer
+
+    def watched(value, seconds):
+        seen.append([(b.disabled, b.description) for b in app.buttons.values()])
+        answer(value, seconds)
+
+    monkeypatch.setattr(app.teaching, "answer", watched)
+    app.buttons["left"].click()  # a double click: the second press comes while the next pair settles
+    app.buttons["left"].click()
+    app._on_key({"type": "keydown", "key": "ArrowRight"})  # and a key right after
+    assert seen == [[(True, PREPARING)] * 3]  # while it was stored and the next pair prepared
+    assert [r["query"] for r in lines(session.path)[1:]] == [0] and app.ignored == 3
+    assert all(b.disabled and b.description == PREPARING for b in app.buttons.values())
+    assert app.wait_ready(timeout=5)
+    assert not any(b.disabled for b in app.buttons.values())
+    app._on_key({"type": "keydown", "key": "ArrowRight"})
+    assert [r["answer"] for r in lines(session.path)[1:]] == ["left", "right"]
+    app.teaching.close()
+
+
+def test_a_finished_session_reopens_to_its_summary(results):
+    config = TeachConfig(**{**SMALL, "preference_queries": 2, "feedback_steps": 2})
+    session = open_session(config)
+    preferences = PreferenceApp(PreferenceTeaching(config, session, render=False))
+    answer_preferences_as_scripted(preferences, noise=0.0, seed=0)
+    answer_feedback_as_scripted(FeedbackApp(FeedbackTeaching(config, session)))
+    preferences.teaching.close()
+    reopened = open_session(config)
+    preferences = PreferenceApp(PreferenceTeaching(config, reopened, render=False))
+    feedback = FeedbackApp(FeedbackTeaching(config, reopened))
+    assert "All 2 preference queries answered" in preferences.heading.value
+    assert "Feedback episode over" in feedback.heading.value
+    assert feedback.teaching.steps == 2 and feedback.teaching.proposed is None
+    for app in (preferences, feedback):
+        assert all(b.disabled for b in app.buttons.values())
+        app.press(app.KEYS[next(iter(app.KEYS))])
+        assert app.ignored == 1
+    assert summary(reopened, config)["answers"] == 2
+    assert len(lines(reopened.path)) == 1 + 2 + 2
+    preferences.teaching.close()
+
+
+def test_catch_trials_are_flagged_and_not_told_to_the_learner(results):
+    config = TeachConfig(**{**SMALL, "preference_queries": 4, "catch_every": 2})
+    session = open_session(config)
+    app = PreferenceApp(PreferenceTeaching(config, session, render=False))
+    answer_preferences_as_scripted(app, noise=0.0, seed=0)
+    app.teaching.close()
+    records = lines(session.path)[1:]
+    assert [r["catch"] for r in records] == [False, True, False, True]
+    near, far = catch_pair(DESK_HEIGHT, config.true_parameter)
+    assert (near, far) == (0.7, 0.9)  # the truth against the range's end farthest from it (0.9 on a tie)
+    assert all(r["candidates"] == [near, far] for r in records if r["catch"])
+    assert all(r["label"] == 1 for r in records if r["catch"])  # the stand-in without flips: the truth
+    # The learner heard only the learner's queries: the file without its catch trials rebuilds it.
+    assert same_learner(app.teaching.learner, replay(config, [r for r in records if not r["catch"]], "bayes"))
+    resumed = PreferenceTeaching(config, open_session(config), render=False)
+    assert same_learner(resumed.learner, app.teaching.learner)
+    resumed.close()
+    table = read_sessions(session.path.parent)
+    assert table["catch_trial"].tolist() == [False, True, False, True]
+
+
+def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(results):
+    config = TeachConfig(
+        **{**SMALL, "preference_queries": 2, "catch_every": 2},
+        participant="P1",
+        conditions=("uniform", "information_gain"),
+    )
+    app = ParticipantApp(config, render=False)
+    text = app.widget.children[0].value
+    assert "height of the desk" in text and "4 pairs in 2 part(s)" in text
+    app.widget.children[1].click()  # start the practice
+    shown = app.practice.teaching.current
+    assert shown.catch and shown.query.candidates == (0.7, 0.9)
+    app.practice.press_as_scripted(shown.side_of(1))  # the wrong clip
+    assert "Not quite" in app.widget.children[0].value and "too high (0.9 m instead of 0.7 m)" in (
+        app.widget.children[0].value
+    )
+    app.widget.children[1].click()
+    for part in range(2):
+        assert f"Part {part + 1} of 2" in app.widget.children[0].value
+        condition = app.apps[part]
+        while (query := condition.teaching.current) is not None:
+            condition.press_as_scripted(query.side_of(0))
+        if part == 0:
+            assert "Part 1 of 2 done" in app.widget.children[0].value
+            app.widget.children[1].click()
+    assert "Thank you" in app.widget.children[0].value
+    assert "All 4 answers are saved" in app.widget.children[0].value
+    sessions = results / "sessions"
+    for rule in config.conditions:
+        header, *answers = lines(sessions / f"participant_P1_{rule}.jsonl")
+        assert header["participant"] == "P1" and header["conditions"] == ["uniform", "information_gain"]
+        assert header["query_rule"] == rule and [a["catch"] for a in answers] == [False, True]
+    table = read_sessions(sessions)  # the practice pair is not in the dataset of answers
+    assert set(table["participant"]) == {"P1"} and len(table) == 4
+    assert lines(sessions / "practice" / "participant_P1_practice.jsonl")[1]["answer"] == shown.side_of(1)
+    # Coming back, the finished conditions are skipped to the closing screen.
+    again = ParticipantApp(config, render=False)
+    again._start_condition(0)
+    assert "Thank you" in again.widget.children[0].value

@@ -6,13 +6,22 @@ wiping grid with COACH's proposed move and buttons +1, 0, -1 (keys 1 or +, 0, an
 bar. Every press goes to the session (`hipref.teach.preferences`, `hipref.teach.feedback`), which stores the
 answer before the learner is told. `answer_as_scripted` plays the person: it presses the same buttons
 (`Button.click` runs the same callbacks), so papermill and nbval execute the whole path headlessly.
+
+A press answers the question on screen only: from a press until the next question has been on screen for
+`SETTLE_SECONDS`, the buttons are disabled and say why ("preparing the next pair"), and every press or key
+that arrives meanwhile (a double click, a key held, a click queued while the kernel was busy) is ignored
+and counted. Keys act only while the pointer is over the widget, which then holds the keyboard focus
+(ipyevents), and the widget says whether they do. A failed write (a full disk, a file made read-only) is
+shown in the widget in red, nothing is recorded and the buttons stay live for another try; the scripted
+stand-in raises it.
 """
 
 from __future__ import annotations
 
 import html
+import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import ipywidgets as widgets
@@ -22,6 +31,7 @@ from ipyevents import Event
 from hipref.experiments.domains import domain_spec
 from hipref.teach.feedback import FeedbackTeaching
 from hipref.teach.preferences import ANSWERS, PreferenceTeaching
+from hipref.teach.session import AnswerRefused, SessionLocked
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 
 PREFERENCE_KEYS: dict[str, str] = {
@@ -36,6 +46,18 @@ PREFERENCE_KEYS: dict[str, str] = {
 FEEDBACK_KEYS: dict[str, int] = {"1": 1, "+": 1, "0": 0, "-": -1}
 """Keys of the feedback values, while the mouse is over the widget."""
 LABELS: dict[str, str] = {"left": "◀ left", "right": "right ▶", "cant_tell": "can't tell ▼"}
+SETTLE_SECONDS = 0.5
+"""Seconds a new question is on screen before presses count: longer than a double click's two presses
+apart, shorter than anyone judges a clip in."""
+PREPARING = "preparing the next pair…"
+"""What the disabled buttons say between a press and the next question."""
+KEYS_HINT = (
+    "<style>.hipref-keys-on{display:none;color:#2ca02c}.ipyevents-watched .hipref-keys-on{display:inline}"
+    ".ipyevents-watched .hipref-keys-off{display:none}.hipref-keys-off{color:#888}</style>"
+    "<span class='hipref-keys-on'>⌨ keys on: {keys}</span>"
+    "<span class='hipref-keys-off'>⌨ keys off: point at this box to answer with {keys}</span>"
+)
+"""Whether the keys answer: ipyevents marks the widget `ipyevents-watched` while it holds the focus."""
 
 
 class AnswerPanel:
@@ -43,31 +65,100 @@ class AnswerPanel:
 
     KEYS: ClassVar[Mapping[str, Any]] = {}
     """Key -> the answer it gives."""
+    buttons: Mapping[Any, widgets.Button]
 
-    def _build(self, css_class: str, children: list[widgets.Widget]) -> None:
-        self.widget = widgets.VBox(children)
+    def _build(self, css_class: str, children: list[widgets.Widget], keys: str) -> None:
+        self.keys_hint = widgets.HTML(KEYS_HINT.replace("{keys}", html.escape(keys)))
+        self.message = widgets.HTML()
+        """A failed write, in red; empty otherwise."""
+        self.widget = widgets.VBox([*children, self.keys_hint, self.message])
         self.widget.add_class(css_class)
         self.keys = Event(source=self.widget, watched_events=["keydown"], prevent_default_action=True)
         self.keys.on_dom_event(self._on_key)
         self.waits: list[float] = []
         """Seconds from each press until the next question was on screen."""
+        self.ignored = 0
+        """Presses and keys ignored: while a question was being prepared or settling, or after the last."""
+        self.error: Exception | None = None
+        """Why the last press was not recorded (a failed write), None once one is."""
+        self.settle = SETTLE_SECONDS
+        self.on_finished: list[Callable[[], None]] = []
+        """Called once the last question is answered (by the press that answers it)."""
+        self._ready = threading.Event()
+        self._labels = {key: button.description for key, button in self.buttons.items()}
         self._shown_at = time.perf_counter()
         self._show()
+        self._arm()
 
     def _on_key(self, event: dict[str, Any]) -> None:
         value = self.KEYS.get(event.get("key", ""))
         if value is not None:
             self.press(value)
 
+    def _set_buttons(self, live: bool) -> None:
+        finished = self._finished()
+        for key, button in self.buttons.items():
+            button.disabled = finished or not live
+            button.description = self._labels[key] if live or finished else PREPARING
+
+    def _arm(self) -> None:
+        """Take presses once the question has been on screen for `settle` seconds."""
+        self._ready.clear()
+        self._set_buttons(False)
+        generation = self._shown_at
+
+        def ready() -> None:
+            if self._shown_at == generation:  # not a question answered meanwhile
+                self._set_buttons(True)
+                self._ready.set()
+
+        if self.settle > 0:
+            timer = threading.Timer(self.settle, ready)
+            timer.daemon = True
+            timer.start()
+        else:
+            ready()
+
+    def wait_ready(self, timeout: float | None = None) -> bool:
+        """Block until presses count again; False if `timeout` seconds passed first."""
+        return self._ready.wait(timeout)
+
     def press(self, value: Any) -> None:
-        """The person answers the question on screen (a button or a key); nothing once all are answered."""
-        if self._finished():
+        """The person answers the question on screen (a button or a key). Ignored (and counted) while the
+        question is not yet taking presses, and once all are answered. A failed write is shown, not raised:
+        nothing is recorded and the same question takes the next press."""
+        if self._finished() or not self._ready.is_set():
+            self.ignored += 1
             return
+        self._ready.clear()
+        self._set_buttons(False)
         pressed = time.perf_counter()
-        self._answer(value, pressed - self._shown_at)
+        try:
+            self._answer(value, pressed - self._shown_at)
+        except (OSError, SessionLocked, AnswerRefused) as error:
+            self.error = error
+            self.message.value = (
+                "<b style='color:#d62728'>Your answer was not saved:</b> "
+                f"<span style='color:#d62728'>{html.escape(str(error))}</span> Answer again to retry."
+            )
+            self._set_buttons(True)
+            self._ready.set()
+            return
+        self.error, self.message.value = None, ""
         self._show()
         self._shown_at = time.perf_counter()
         self.waits.append(self._shown_at - pressed)
+        self._arm()
+        if self._finished():
+            for callback in self.on_finished:
+                callback()
+
+    def press_as_scripted(self, value: Any) -> None:
+        """Press `value` once presses count, as the stand-in does; the failed write raised."""
+        self.wait_ready()
+        self.buttons[value].click()
+        if self.error is not None:
+            raise self.error
 
     def _finished(self) -> bool:
         raise NotImplementedError
@@ -95,7 +186,8 @@ class PreferenceApp(AnswerPanel):
         self.progress = widgets.IntProgress(min=0, max=teaching.config.preference_queries)
         self.status = widgets.HTML()
         buttons = widgets.HBox(list(self.buttons.values()))
-        self._build("hipref-preferences", [self.heading, self.clips, buttons, self.progress, self.status])
+        children = [self.heading, self.clips, buttons, self.progress, self.status]
+        self._build("hipref-preferences", children, "← → ↓")
 
     def _finished(self) -> bool:
         return self.teaching.current is None
@@ -107,8 +199,6 @@ class PreferenceApp(AnswerPanel):
         teaching, shown = self.teaching, self.teaching.current
         planned = teaching.config.preference_queries
         self.progress.value = teaching.answered
-        for button in self.buttons.values():
-            button.disabled = shown is None
         if shown is None:
             self.heading.value = f"<b>All {planned} preference queries answered.</b>"
             self.clips.layout.display = "none"
@@ -121,7 +211,7 @@ class PreferenceApp(AnswerPanel):
         else:
             self.heading.value = (
                 f"<b>Query {shown.number + 1} of {planned}:</b> which clip shows the robot doing the task "
-                "better? (keys ← → ↓ with the mouse over the clips)"
+                "better?"
             )
             self.clips.value = shown.animation
             self.clips.layout.display = None
@@ -153,7 +243,7 @@ class FeedbackApp(AnswerPanel):
         self.heading = widgets.HTML()
         self.progress = widgets.IntProgress(min=0, max=teaching.config.feedback_steps)
         buttons = widgets.HBox(list(self.buttons.values()))
-        self._build("hipref-feedback", [self.heading, self.grid, buttons, self.progress])
+        self._build("hipref-feedback", [self.heading, self.grid, buttons, self.progress], "1, 0, −")
 
     def _finished(self) -> bool:
         return self.teaching.done
@@ -166,15 +256,13 @@ class FeedbackApp(AnswerPanel):
         planned = teaching.config.feedback_steps
         self.progress.value = teaching.steps
         self.grid.value = teaching.svg()
-        for button in self.buttons.values():
-            button.disabled = teaching.done
         wiped = f"{len(teaching.wiped)} of {teaching.grid.n_states} cells wiped"
         if teaching.done:
             self.heading.value = f"<b>Feedback episode over:</b> {wiped}."
         else:
             self.heading.value = (
                 f"<b>Step {teaching.steps + 1} of {planned}:</b> is the red move good for wiping the desk? "
-                f"({wiped}; keys 1, 0, − with the mouse over the grid)"
+                f"({wiped})"
             )
 
 
@@ -183,13 +271,15 @@ def answer_preferences_as_scripted(preferences: PreferenceApp, noise: float, see
     of the candidate closest to the truth, the other with probability `noise`."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 5]))
     teacher = ScriptedPreferenceTeacher(preferences.teaching.truth, noise, rng)
+    preferences.settle = 0.0  # it presses once per query, never twice
     while (shown := preferences.teaching.current) is not None:
         label = teacher.answer(shown.query)
-        preferences.buttons[shown.side_of(0 if label == 1 else 1)].click()
+        preferences.press_as_scripted(shown.side_of(0 if label == 1 else 1))
 
 
 def answer_feedback_as_scripted(feedback: FeedbackApp) -> None:
     """Answer every step of the episode by pressing +1 or -1 as notebook 01's teacher would (the coverage
     expert's move is good, any other bad)."""
+    feedback.settle = 0.0  # it presses once per step, never twice
     while not feedback.teaching.done:
-        feedback.buttons[feedback.teaching.expert_feedback()].click()
+        feedback.press_as_scripted(feedback.teaching.expert_feedback())

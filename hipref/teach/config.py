@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,16 @@ class TeachConfig:
     model, reused; A.7: 100)."""
     pretrain_steps: int = 500
     """Adam steps of Algorithm 4 (the full profile: 3000)."""
+    catch_every: int = 0
+    """Every `catch_every`-th preference query is a catch trial (0: none): the candidate nearest the truth
+    against the end of the range farthest from it, which anyone watching can tell apart. Its answer is
+    stored flagged `catch` and not told to the learner."""
+    participant: str = ""
+    """A participant's id (letters, digits, - and _): '' is the researcher's notebook; set, the notebook
+    shows the participant's screens (`hipref.teach.participant`, served by `make teach`)."""
+    conditions: tuple[str, ...] = ()
+    """The participant's query rules, in the order they meet them (one session each); () is `query_rule`
+    alone."""
 
     def __post_init__(self) -> None:
         check_choice("teacher", self.teacher, TEACHERS)
@@ -78,6 +89,16 @@ class TeachConfig:
         check_int("frames", self.frames, 2, 200)
         check_int("fps", self.fps, 1, 60)
         check_range("scripted_noise", self.scripted_noise, 0.0, 1.0)
+        check_int("catch_every", self.catch_every, 0)
+        if self.participant and not re.fullmatch(r"[A-Za-z0-9_-]{1,40}", self.participant):
+            raise ValueError(
+                f"participant must be 1-40 letters, digits, - or _ (it names the session files), got "
+                f"{self.participant!r}"
+            )
+        for rule in self.conditions:
+            check_choice("conditions", rule, QUERY_RULES)
+        if len(set(self.conditions)) != len(self.conditions):
+            raise ValueError(f"conditions must not repeat a query rule, got {list(self.conditions)}")
         if self.session and (Path(self.session).name != self.session or not self.session.endswith(".jsonl")):
             raise ValueError(f"session must be a file name ending in .jsonl, got {self.session!r}")
         self.data  # noqa: B018 - validates n_trajectories and pretrain_steps
@@ -89,9 +110,20 @@ class TeachConfig:
 
     @property
     def session_name(self) -> str:
-        return self.session or f"{self.teacher}_{self.domain}_seed{self.seed}.jsonl"
+        if self.session:
+            return self.session
+        if self.participant:
+            return f"participant_{self.participant}_{self.query_rule}.jsonl"
+        return f"{self.teacher}_{self.domain}_seed{self.seed}.jsonl"
 
     def header(self) -> dict[str, Any]:
-        """What a session file records of its session: every field that changes the queries or answers."""
+        """What a session file records of its session: every field that changes the queries or answers,
+        and the participant (catch trials, participant and conditions only when set)."""
         shown = {"teacher", "session", "reveal_truth", "fps"}
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in shown}
+        header = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in shown}
+        for name in ("catch_every", "participant", "conditions"):
+            if not header[name]:
+                del header[name]
+        if "conditions" in header:
+            header["conditions"] = list(header["conditions"])
+        return header

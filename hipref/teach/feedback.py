@@ -38,6 +38,8 @@ class FeedbackTeaching:
         self.state: Cell = START
         self.wiped: set[Cell] = set()
         self.proposed: int | None = None
+        self.steps = 0
+        """Feedback answers told so far (all those stored, once the episode is replayed)."""
         self._propose()
         for record in session.of_kind("feedback"):
             if (record["state"], record["action"]) != (list(self.state), self.proposed):
@@ -46,10 +48,6 @@ class FeedbackTeaching:
                     f"{record['state']}, but this session proposes {self.proposed} from {list(self.state)}"
                 )
             self._tell(record["feedback"])
-
-    @property
-    def steps(self) -> int:
-        return len(self.session.of_kind("feedback"))
 
     @property
     def done(self) -> bool:
@@ -68,6 +66,7 @@ class FeedbackTeaching:
             stroke = self.task.stroke(self.grid.center(target), self.config.desk_height)
             self.wiped |= self.grid.wiped(stroke.tool_xy, stroke.force, self.task.config.force_band)
             self.state = self.grid.realign(target, stroke.reached, stroke.tool_xy[-1])
+        self.steps += 1
         self._propose()
 
     def answer(self, feedback: int, seconds: float) -> None:

@@ -15,6 +15,11 @@ a chosen query rule it does: the next query is prepared for each possible answer
 first), each on a copy of the learner and of the session's random streams, and the copy of the answer
 given is kept. Resuming replays the stored answers in the live order with the stored slices, without
 physics, and rebuilds the learner exactly (`tests/test_teach_session.py`).
+
+With `catch_every`, every catch_every-th query is a catch trial instead of the learner's: the candidate
+nearest the truth against the end of the range farthest from it (`catch_pair`), shown like any query. Its
+answer is stored with `catch` true and not told to the learner, so the learner's queries and estimate are
+those of the session without catch trials.
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
 from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.pesi import PESIConfig, PESILearner
-from hipref.learners.sysid import SIModel
+from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.seeds import integer_seed
 from hipref.teach.clips import side_by_side_gif
 from hipref.teach.config import TeachConfig
@@ -93,9 +98,23 @@ def running_estimate(learner: Learner, evaluation: np.ndarray) -> float:
     return float(learner.model.predict(evaluation).mean())
 
 
+def catch_pair(candidates: CandidateSet, truth: float) -> tuple[float, float]:
+    """A catch trial's pair: the candidate nearest `truth`, and the end of the range farthest from it."""
+    values = candidates.values
+    near = float(values[np.argmin(np.abs(values - truth))])
+    far = candidates.low if truth - candidates.low > candidates.high - truth else candidates.high
+    return near, float(far)
+
+
 def tell(learner: Learner, query: PreferenceQuery, label: int | None) -> None:
     """Tell `learner` an answer: its label, or "can't tell" as 'equally good'."""
     learner.tell(query, EQUAL if label is None else label)
+
+
+def told(learner: Learner, shown: ShownQuery, answer: str) -> None:
+    """Tell `learner` the answer to `shown`, unless it is a catch trial."""
+    if not shown.catch:
+        tell(learner, shown.query, shown.label(answer))
 
 
 @dataclass(frozen=True)
@@ -112,6 +131,8 @@ class ShownQuery:
     """order[s]: the index in `query.candidates` of the candidate shown on side s (left, right)."""
     animation: bytes | None
     """The candidates' clips side by side in `order`, a looping GIF; None without GL or when replayed."""
+    catch: bool = False
+    """A catch trial (`catch_pair`): stored, not told to the learner."""
 
     def label(self, answer: str) -> int | None:
         """The Eq. 2 label of `answer` (1: candidates[0] preferred), None for "can't tell"."""
@@ -139,6 +160,7 @@ def answer_record(shown: ShownQuery, answer: str, seconds: float, seed: int) -> 
         "label": shown.label(answer),
         "seconds": round(float(seconds), 3),
         "seed": seed,
+        "catch": shown.catch,
         "clip": {"estimate": c.estimate, "periods": c.periods, "first": c.first, "tau": c.tau.tolist()},
     }
 
@@ -232,7 +254,12 @@ class PreferenceTeaching:
                 executed.append(recorded)
                 return recorded.replay(phi, self.history, rng)
 
-        query = asker.learner.ask(observe)
+        catch = self.is_catch(number)
+        if catch:
+            candidates = catch_pair(domain_spec(self.config.domain).candidates, self.truth)
+            query = PreferenceQuery(candidates, features=observe(candidates[0], asker.slices))
+        else:
+            query = asker.learner.ask(observe)
         if not executed:
             # A learner asking by a chosen rule takes no slice; one is cut for the record, so that every
             # learner can be replayed from the session (`hipref.teach.recorded`).
@@ -255,7 +282,12 @@ class PreferenceTeaching:
             clips = [f for f in frames if f is not None]
             if len(clips) == len(frames):
                 animation = side_by_side_gif(clips, self.config.fps)
-        return ShownQuery(number, query, executed[0], order, animation)
+        return ShownQuery(number, query, executed[0], order, animation, catch)
+
+    def is_catch(self, number: int) -> bool:
+        """Whether query `number` (from 0) is a catch trial."""
+        every = self.config.catch_every
+        return every > 0 and (number + 1) % every == 0
 
     def prepare_apart(self, number: int) -> ShownQuery:
         """Query `number` asked, executed and rendered on a copy of the session's learner and streams,
@@ -267,7 +299,7 @@ class PreferenceTeaching:
     ) -> tuple[Asker, ShownQuery]:
         """The query after `shown` on `asker` (a copy), told `answer` to `shown` first when it matters."""
         if answer is not None:
-            tell(asker.learner, shown.query, shown.label(answer))
+            told(asker.learner, shown, answer)
 
         def wanted() -> bool:  # still possible: not yet answered, or answered `answer`
             return self._answers_given == answers_given or self._last_answer in (answer, None)
@@ -298,7 +330,7 @@ class PreferenceTeaching:
         if self.answer_dependent:
             for k, record in enumerate(records):
                 shown = self._prepare(k, record, self._asker)
-                tell(self.learner, shown.query, shown.label(record["answer"]))
+                told(self.learner, shown, record["answer"])
             following = len(records)
             self.current = self._prepare(following, None, self._asker) if following < planned else None
         elif records:
@@ -310,7 +342,7 @@ class PreferenceTeaching:
                     stored = records[following] if following < len(records) else None
                     upcoming = self._prepare(following, stored, self._asker)
                 assert self.current is not None
-                tell(self.learner, self.current.query, self.current.label(record["answer"]))
+                told(self.learner, self.current, record["answer"])
                 self.current = upcoming
         else:
             self.current = self._prepare(0, None, self._asker)
@@ -335,12 +367,12 @@ class PreferenceTeaching:
             if other is not branch:
                 other.cancel()
         if branch is None:  # the last planned query
-            tell(self.learner, shown.query, shown.label(answer))
+            told(self.learner, shown, answer)
             self.current = None
         else:
             asker, upcoming = branch.result()
             if not self.answer_dependent:
-                tell(asker.learner, shown.query, shown.label(answer))
+                told(asker.learner, shown, answer)
             self._asker, self.current = asker, upcoming
         self._prefetch()
 

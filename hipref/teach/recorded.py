@@ -86,6 +86,8 @@ def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str =
     else:
         learner = make_learner(config, model, method)
     for record in records:
+        if record.get("catch", False):  # catch trials are not told (`hipref.teach.preferences`)
+            continue
         features = np.array(record["clip"]["tau"]) if isinstance(learner, PESILearner) else np.zeros(0)
         tell(learner, PreferenceQuery(tuple(record["candidates"]), features=features), record["label"])
     return learner

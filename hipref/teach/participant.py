@@ -1,0 +1,256 @@
+"""Participant mode: notebook 09 as a participant meets it, served by Voila without any code.
+
+`ParticipantApp` is one widget that leads a participant through instructions, a practice query answered
+with feedback (a catch pair: which clip was run with the right parameter, and what the other one got
+wrong), the preference queries of each condition (`TeachConfig.conditions`, query rules in the order
+given, one session file each, catch trials mixed in as `catch_every` says) and a closing screen. Each
+condition is a `PreferenceApp` on its own session, `participant_<id>_<rule>.jsonl`, whose header names
+the participant and the order of the conditions; the practice answer is stored apart, in
+`sessions/practice/`, out of the dataset of answers. A participant who comes back resumes where they
+stopped: finished conditions are skipped.
+
+    python -m hipref.teach.participant ID [--conditions uniform information_gain] [--port 8866]
+
+(`make teach PARTICIPANT=ID`) writes the participant's view of notebook 09, its parameters cell set for
+the participant and only the cells tagged `participant` kept, to a temporary folder, and serves it with
+Voila (code cells hidden) on http://127.0.0.1:PORT until interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import json
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import ipywidgets as widgets
+from IPython.display import display
+
+from hipref.experiments.domains import domain_spec
+from hipref.learners.queries import QUERY_RULES
+from hipref.results import repo_root, results_dir
+from hipref.teach.app import PreferenceApp
+from hipref.teach.config import TeachConfig
+from hipref.teach.preferences import PreferenceTeaching
+from hipref.teach.session import SessionFile
+
+TAG = "participant"
+"""The tag of notebook 09's cells a participant's view keeps (besides the parameters cell)."""
+
+INSTRUCTIONS = """
+<h2>Teach a robot</h2>
+<p>A robot arm {task}. It does not know {parameter}: it has to guess, and a wrong guess shows in its
+motion. {symptom}</p>
+<p>You will see two clips side by side, looping: the same robot, run with two different guesses.
+Choose the clip where the robot does the task <b>better</b>: <b>◀ left</b>, <b>right ▶</b>, or
+<b>can't tell ▼</b> if you cannot see a difference. Keys ← → ↓ work while the pointer is over the clips.</p>
+<p>First one practice pair, with the right answer shown afterwards;
+then {queries} pairs in {parts} part(s). Some pairs are easy on purpose.
+Your answers are saved as you give them; you may close the window and come back.</p>
+"""
+TASKS: dict[str, tuple[str, str, str]] = {
+    "wiping": (
+        "wipes a desk with a sponge",
+        "the height of the desk",
+        "Guessed too high, the sponge hovers above the desk and wipes nothing; guessed too low, it "
+        "presses hard into the desk.",
+    ),
+    "pushing": (
+        "pushes a cube towards a goal",
+        "the mass of the cube",
+        "Guessed too light, it pushes too gently and the cube stops short; guessed too heavy, it pushes too "
+        "hard and the cube overshoots.",
+    ),
+}
+"""Per domain: what the robot does, what it does not know, how a wrong guess shows."""
+
+
+def condition_configs(config: TeachConfig) -> list[TeachConfig]:
+    """The participant's sessions, one per condition (query rule), in the order given."""
+    rules = config.conditions or (config.query_rule,)
+    return [dataclasses.replace(config, query_rule=rule, teacher="person", session="") for rule in rules]
+
+
+def practice_config(config: TeachConfig) -> TeachConfig:
+    """The practice session: one catch pair, on a seed of its own."""
+    return dataclasses.replace(
+        config,
+        teacher="person",
+        preference_queries=1,
+        catch_every=1,
+        conditions=(),
+        seed=config.seed + 1,
+        session=f"participant_{config.participant}_practice.jsonl",
+    )
+
+
+class ParticipantApp:
+    """Instructions, a practice query with feedback, each condition's queries, a closing screen."""
+
+    def __init__(self, config: TeachConfig, *, render: bool = True) -> None:
+        if not config.participant:
+            raise ValueError("participant mode needs a participant id (TeachConfig.participant)")
+        self.config = config
+        self.render = render
+        """Render the clips (False: the queries without their clips, for tests)."""
+        self.conditions = condition_configs(config)
+        self.widget = widgets.VBox()
+        self.widget.add_class("hipref-participant")
+        self.apps: list[PreferenceApp] = []
+        """The conditions' widgets, in the order met."""
+        self.practice: PreferenceApp | None = None
+        task, parameter, symptom = TASKS[config.domain]
+        queries = sum(c.preference_queries for c in self.conditions)
+        text = INSTRUCTIONS.format(
+            task=task, parameter=parameter, symptom=symptom, queries=queries, parts=len(self.conditions)
+        )
+        self._screen(text, "Start the practice pair", self._start_practice)
+
+    def _screen(self, text: str, button: str, then: Callable[[], None]) -> None:
+        go = widgets.Button(description=button, button_style="primary")
+        go.layout.width = "auto"
+        go.on_click(lambda _: then())
+        self.widget.children = [widgets.HTML(text), go]
+
+    def _start_practice(self) -> None:
+        config = practice_config(self.config)
+        folder = results_dir() / "sessions" / "practice"
+        session = SessionFile(folder / config.session_name, config.header(), fresh=True)
+        self.practice = PreferenceApp(PreferenceTeaching(config, session, render=self.render))
+        self.practice.on_finished.append(self._practice_feedback)
+        self.widget.children = [widgets.HTML("<h3>Practice pair</h3>"), self.practice.widget]
+
+    def _practice_feedback(self) -> None:
+        assert self.practice is not None
+        teaching = self.practice.teaching
+        teaching.close()
+        record = teaching.session.of_kind("preference")[0]
+        near, far = record["candidates"]
+        good = "left" if record["shown"][0] == near else "right"
+        spec = domain_spec(self.config.domain)
+        wrong = {"wiping": ("too low", "too high"), "pushing": ("too light", "too heavy")}[self.config.domain]
+        wrong_way = wrong[far > near]
+        verdict = "Right" if record["answer"] == good else "Not quite"
+        text = (
+            f"<h3>{verdict}: the {good} clip was the better one.</h3><p>It was run with the right "
+            f"{spec.parameter}; the other with a guess {wrong_way} ({far:g} {spec.unit} instead of {near:g} "
+            f"{spec.unit}). Look for this difference in the pairs to come.</p>"
+        )
+        self._screen(text, "Start", lambda: self._start_condition(0))
+
+    def _start_condition(self, index: int) -> None:
+        if index == len(self.conditions):
+            self._close()
+            return
+        config = self.conditions[index]
+        session = SessionFile(results_dir() / "sessions" / config.session_name, config.header())
+        app = PreferenceApp(PreferenceTeaching(config, session, render=self.render))
+        self.apps.append(app)
+        part = f"<h3>Part {index + 1} of {len(self.conditions)}</h3>"
+        if app.teaching.done:  # answered in an earlier visit
+            app.teaching.close()
+            self._start_condition(index + 1)
+            return
+
+        def finished() -> None:
+            app.teaching.close()
+            if index + 1 < len(self.conditions):
+                text = f"<h3>Part {index + 1} of {len(self.conditions)} done.</h3><p>Take a short break.</p>"
+                self._screen(text, "Continue", lambda: self._start_condition(index + 1))
+            else:
+                self._close()
+
+        app.on_finished.append(finished)
+        self.widget.children = [widgets.HTML(part), app.widget]
+
+    def _close(self) -> None:
+        answered = sum(app.teaching.answered for app in self.apps)
+        self.widget.children = [
+            widgets.HTML(
+                f"<h2>Thank you!</h2><p>All {answered} answers are saved (participant "
+                f"{self.config.participant}). You may close this window.</p>"
+            )
+        ]
+
+
+def participant_screen(config: TeachConfig) -> None:
+    """In notebook 09: the participant's screens, shown."""
+    display(ParticipantApp(config).widget)
+
+
+def participant_view(notebook: Path, parameters: dict[str, Any], out: Path) -> Path:
+    """Notebook `notebook` as a participant's view: its parameters cell with `parameters` set, and only its
+    cells tagged `TAG`, without outputs; written to `out`."""
+    content = json.loads(notebook.read_text())
+    cells = []
+    for cell in content["cells"]:
+        tags = cell.get("metadata", {}).get("tags", [])
+        if "parameters" in tags:
+            source = "".join(cell["source"]).splitlines()
+            for name, value in parameters.items():
+                declared = next(line for line in source if line.startswith(f"{name}:"))
+                kind = declared.split(":")[1].split("=")[0].strip()
+                source = [
+                    f"{name}: {kind} = {value!r}" if line.startswith(f"{name}:") else line for line in source
+                ]
+            cell["source"] = "\n".join(source)
+        elif TAG not in tags:
+            continue
+        cell["outputs"], cell["execution_count"] = [], None
+        cells.append(cell)
+    content["cells"] = cells
+    content["metadata"].pop("widgets", None)
+    out.write_text(json.dumps(content))
+    return out
+
+
+def voila_command(view: Path, port: int) -> list[str]:
+    """Voila serving the participant's `view` on loopback at `port`, its code cells hidden."""
+    return [
+        sys.executable, "-m", "voila", str(view), "--no-browser", f"--port={port}", "--Voila.ip=127.0.0.1",
+        "--strip_sources=True", "--show_tracebacks=True",
+    ]  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> None:
+    formatter = argparse.RawDescriptionHelpFormatter
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=formatter)
+    parser.add_argument("participant", help="the participant's id (letters, digits, - and _)")
+    parser.add_argument(
+        "--conditions", nargs="+", default=["uniform", "information_gain"], choices=QUERY_RULES,
+        help="query rules in the order the participant meets them",
+    )  # fmt: skip
+    parser.add_argument("--queries", type=int, default=12, help="preference queries per condition")
+    parser.add_argument("--catch-every", type=int, default=4, help="every n-th query a catch trial")
+    parser.add_argument("--domain", default="wiping", choices=list(TASKS))
+    parser.add_argument("--port", type=int, default=8866)
+    args = parser.parse_args(argv)
+    parameters = {
+        "teacher": "person",
+        "participant": args.participant,
+        "conditions": list(args.conditions),
+        "preference_queries": args.queries,
+        "catch_every": args.catch_every,
+        "domain": args.domain,
+    }
+    if args.domain == "pushing":
+        parameters["true_parameter"] = 14.0
+    TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})  # bad values refused here
+    root = repo_root() or Path.cwd()
+    with tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder:
+        view = participant_view(
+            root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
+        )
+        print(f"participant {args.participant}: http://127.0.0.1:{args.port}/", flush=True)
+        with contextlib.suppress(KeyboardInterrupt):  # the researcher stops the server (Ctrl-C)
+            subprocess.run(voila_command(view, args.port), check=False)
+
+
+if __name__ == "__main__":
+    main()
