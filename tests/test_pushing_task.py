@@ -69,3 +69,18 @@ def test_config_rejects_bad_values() -> None:
         PushingConfig(tilt=1.0)
     with pytest.raises(ValueError):
         PushingConfig(push_distance=(0.2, 0.1))
+
+
+def test_episode_metrics_split_the_miss_along_and_across_the_push(task: PushingTask) -> None:
+    """A push planned for a heavier cube overshoots its goal, one for a lighter cube stops short; the two
+    parts of the miss make up its distance, and a push refuses the routes of a learned stroke."""
+    layout = task.sample_layout(np.random.default_rng(3))
+    heavy = task.episode_metrics(14.0, 18.0, layout)
+    light = task.episode_metrics(14.0, 10.0, layout)
+    assert heavy["goal_overshoot"] > 0 > light["goal_overshoot"]
+    for metrics in (heavy, light):
+        miss = np.hypot(metrics["goal_overshoot"], metrics["goal_sideways"])
+        assert miss == pytest.approx(metrics["goal_distance"])
+        assert not metrics["success_rate"]
+    with pytest.raises(ValueError, match="route"):
+        task.episode_metrics(14.0, 14.0, layout, route="input")

@@ -16,7 +16,6 @@ from hipref.learners.robust import (
     SmallLossPESILearner,
     TrustFlipPESILearner,
     UnbiasedPESILearner,
-    buffer_preferences,
     conservative_pesi_loss,
     preference_nll,
     unbiased_pesi_loss,
@@ -102,7 +101,7 @@ def test_the_small_loss_filter_forgets_the_estimated_share_with_the_largest_loss
     _teach(learner, 0.8, 0.2, 60)
     record, rate = learner.si_updates[-1], learner.noise_history[-1]
     assert len(record.forgotten) == math.floor(rate * len(record.batch) + 0.5)
-    assert rate == pytest.approx(min(0.4, likelihood_noise(buffer_preferences(learner), 0.5, 0.9)))
+    assert rate == pytest.approx(min(0.4, likelihood_noise(learner.buffer_preferences(), 0.5, 0.9)))
     with torch.no_grad():
         losses = preference_nll(*learner._pair_tensors(record.batch))
     forgotten = np.isin(record.batch, record.forgotten)
@@ -143,7 +142,7 @@ def test_the_unbiased_learner_estimates_the_rate_by_marginal_likelihood_before_e
     _teach(learner, 0.6, 0.2, 30)
     assert len(learner.noise_history) == 30 - 8
     assert learner.noise_history[-1] == pytest.approx(
-        min(0.4, likelihood_noise(buffer_preferences(learner), 0.5, 0.9))
+        min(0.4, likelihood_noise(learner.buffer_preferences(), 0.5, 0.9))
     )
 
 
@@ -161,7 +160,7 @@ def test_co_pesi_likelihood_forgets_the_marginal_likelihood_rate_of_its_buffer()
     _teach(learner, 0.7, 0.25, 30)
     assert len(learner.noise_history) == 30 - 8
     assert learner.noise_level == learner.noise_history[-1]
-    assert learner.noise_level == pytest.approx(likelihood_noise(buffer_preferences(learner), 0.5, 0.9))
+    assert learner.noise_level == pytest.approx(likelihood_noise(learner.buffer_preferences(), 0.5, 0.9))
 
 
 @pytest.mark.parametrize(

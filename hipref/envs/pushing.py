@@ -52,7 +52,7 @@ from hipref.envs.pushing_layout import PaddlePoses
 from hipref.envs.task import Layout, Rollout, evenly_spaced
 from hipref.sim.render import clip_frames, watching_camera
 from hipref.sim.scene import Scene, make_scene
-from hipref.validation import check_int, check_parameter
+from hipref.validation import check_choice, check_int, check_parameter
 
 
 @dataclass
@@ -130,6 +130,25 @@ class PushingTask:
         self.reset(true_parameter, start, goal)
         push = self.push(estimate)
         return Rollout(push.features, bool(push.success))
+
+    def episode_metrics(
+        self, true_parameter: float, estimate: float, layout: Layout, route: str = "both"
+    ) -> dict[str, float]:
+        """A push's success and the cube's final distance to its goal (`goal_distance`), its part along
+        the push, past the goal positive (`goal_overshoot`), and across it (`goal_sideways`). A push takes
+        the estimate only as input: `route` must be 'both'."""
+        check_choice("route", route, ("both",))
+        start, goal = layout
+        self.reset(true_parameter, start, goal)
+        push = self.push(estimate)
+        along = (goal - start) / np.linalg.norm(goal - start)
+        miss = push.resting_xy - goal
+        return {
+            "success_rate": push.success,
+            "goal_distance": push.final_error,
+            "goal_overshoot": float(miss @ along),
+            "goal_sideways": abs(float(miss[0] * along[1] - miss[1] * along[0])),
+        }
 
     def demonstrate(
         self,

@@ -16,6 +16,11 @@ import numpy as np
 
 from hipref.envs.low_level import Demonstration, Perturb
 
+ROUTES: tuple[str, ...] = ("both", "input", "path")
+"""How an estimate reaches a learned pi^l: as its input and through the path it follows ('both', what an
+estimate does), as the input alone (the path the truth's), or through the path alone (the input the
+truth)."""
+
 Layout = tuple[np.ndarray, np.ndarray]
 """An episode's layout on the desk: the stroke's start and goal (wiping), the cube's start and goal
 (pushing)."""
@@ -60,6 +65,14 @@ class Task(Protocol):
     ) -> list[np.ndarray] | None:
         """The clip of `rollout` as `frames` images evenly spaced over it (`hipref.sim.render`), seen from
         where the effect of a wrong estimate shows; None where no GL is."""
+        ...
+
+    def episode_metrics(
+        self, true_parameter: float, estimate: float, layout: Layout, route: str = "both"
+    ) -> dict[str, float]:
+        """One rollout as a study shows it: its success (`success_rate`) and the domain's measures of how
+        it went. `route` is how the estimate reaches a learned pi^l (`ROUTES`); a task whose pi^l takes
+        the estimate only as input refuses all but 'both'."""
         ...
 
     @property

@@ -29,11 +29,11 @@ from hipref.envs.low_level import (
     initial_state,
     no_perturbation,
 )
-from hipref.envs.task import Layout, Rollout, evenly_spaced
+from hipref.envs.task import ROUTES, Layout, Rollout, evenly_spaced
 from hipref.sim.config import SceneConfig
 from hipref.sim.render import clip_frames, watching_camera
 from hipref.sim.scene import Scene, make_scene
-from hipref.validation import check_int, check_interval, check_parameter, check_range
+from hipref.validation import check_choice, check_int, check_interval, check_parameter, check_range
 
 HOVER_CLEARANCE = 0.03
 """Least height in m of the tool tip at reset above the highest desk of the range."""
@@ -190,6 +190,19 @@ class WipingTask:
         self.reset(true_parameter, (float(start[0]), float(start[1])))
         stroke = self.execute(goal, estimate, periods=periods)
         return Rollout(stroke.features, bool(stroke.success))
+
+    def episode_metrics(
+        self, true_parameter: float, estimate: float, layout: Layout, route: str = "both"
+    ) -> dict[str, float]:
+        """A stroke's success and its contact force (`force_mean`, `force_std`); the path and the input
+        of a learned stroke given the estimate or the truth by `route` (`ROUTES`)."""
+        check_choice("route", route, ROUTES)
+        start, goal = layout
+        self.reset(true_parameter, (float(start[0]), float(start[1])))
+        path = true_parameter if route == "input" else estimate
+        stroke = self.execute(goal, path, phi=true_parameter if route == "path" else estimate)
+        force = stroke.force
+        return {"success_rate": stroke.success, "force_mean": force.mean(), "force_std": force.std()}
 
     def demonstrate(
         self,

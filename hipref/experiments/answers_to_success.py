@@ -31,7 +31,7 @@ import pandas as pd
 from hipref.experiments.domains import DOMAINS, domain_spec
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_clips import run_streams
-from hipref.experiments.si_methods import METHODS
+from hipref.experiments.si_methods import BAYES_METHODS, COTEACHING_METHODS, METHODS
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
 from hipref.learners.answer_models import TOLD, hypotheses, told
 from hipref.learners.bayes import BayesConfig, BayesLearner
@@ -256,9 +256,9 @@ class AnswersConfig(Protocol):
             for domain in self.domains
             for noise in self.task_noise_levels
             for method in self.methods
-            if not (method.startswith("co_pesi") and noise == 0)
+            if not (method in COTEACHING_METHODS and noise == 0)
             for rule in self.task_rules
-            if rule == "uniform" or method.startswith("bayes")
+            if rule == "uniform" or method in BAYES_METHODS
             for truth, seed in self.task_environments(domain)
         ]
 

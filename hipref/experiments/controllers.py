@@ -17,13 +17,18 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from hipref.envs.pushing_config import PushingConfig
-from hipref.envs.wiping import WipingConfig, WipingTask
-from hipref.experiments.domains import domain_spec
+from hipref.envs.wiping import WipingTask
+from hipref.experiments.domains import DOMAINS, domain_spec, estimate_error_grids
 from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_int, check_range
+
+COMPLIANT: dict[str, bool] = {"spd": False, "admittance": True}
+"""The ablation's controllers by name, and whether each puts admittance control on SPD (A.8)."""
+
+CLAIM_ERRORS: dict[str, str] = {"wiping": "claim_height_error", "pushing": "claim_mass_error"}
+"""The field of `ControllersConfig` holding each domain's claimed error (its notebook parameter)."""
 
 
 @dataclass(frozen=True)
@@ -61,25 +66,13 @@ class ControllersConfig:
         check_int("ablation_seeds", self.ablation_seeds, 1, 1000)
         check_int("curve_seeds", self.curve_seeds, 1, 10000)
         check_int("seed", self.seed, 0)
-        for name, errors, claim_name, claim, (low, high) in (
-            (
-                "height_errors",
-                self.height_errors,
-                "claim_height_error",
-                self.claim_height_error,
-                WipingConfig().height_range,
-            ),
-            (
-                "mass_errors",
-                self.mass_errors,
-                "claim_mass_error",
-                self.claim_mass_error,
-                PushingConfig().mass_range,
-            ),
-        ):
+        claims = self.claim_errors()
+        for domain, errors in estimate_error_grids(self).items():
+            name, candidates = DOMAINS[domain].estimate_errors, DOMAINS[domain].candidates
+            claim_name, claim = CLAIM_ERRORS[domain], claims[domain]
             # At most half the range, so that the true parameters of every error (drawn where the
             # estimate stays in the range) still cover half of it.
-            bound = (high - low) / 2
+            bound = (candidates.high - candidates.low) / 2
             for e in errors:
                 check_range(name, e, -bound, bound)
             check_range(claim_name, claim, 1e-9, bound)
@@ -89,6 +82,10 @@ class ControllersConfig:
                     f"{name} must contain {needed} (the claim compares success at the true parameter with "
                     f"success at +-{claim_name}), got {tuple(errors)!r}"
                 )
+
+    def claim_errors(self) -> dict[str, float]:
+        """Each domain's error at which its task should mostly fail (`CLAIM_ERRORS`)."""
+        return {domain: getattr(self, name) for domain, name in CLAIM_ERRORS.items()}
 
 
 @dataclass(frozen=True)
@@ -102,7 +99,7 @@ class AblationCell:
     seed: int
 
     def __post_init__(self) -> None:
-        check_choice("method", self.method, ("spd", "admittance"))
+        check_choice("method", self.method, tuple(COMPLIANT))
         check_range("desk_height", self.desk_height, 0.5, 0.9)
         check_range("desired_height", self.desired_height, 0.5, 0.9)
         check_int("trajectory_goals", self.trajectory_goals, 1, 100)
@@ -139,7 +136,7 @@ def _rows(domain: str, method: str, seed: int, metrics: dict[str, float], **extr
 
 def run_ablation_cell(cell: AblationCell) -> pd.DataFrame:
     """Follow the cell's random trajectory; the z force over every stroke (A.8, Fig. 7)."""
-    task = WipingTask(compliant=cell.method == "admittance")
+    task = WipingTask(compliant=COMPLIANT[cell.method])
     goals = task.area_points(np.random.default_rng(cell.seed), cell.trajectory_goals)
     task.reset(cell.desk_height, (0.0, 0.05))
     forces = np.concatenate([task.stroke(goal, cell.desired_height).force for goal in goals])
@@ -177,7 +174,7 @@ def run_ablation(config: ControllersConfig, **sweep: Any) -> pd.DataFrame:
     seeds = child_seeds([config.seed, 5], config.ablation_seeds)
     cells = [
         AblationCell(method, config.desk_height, h, config.trajectory_goals, seed)
-        for method in ("spd", "admittance")
+        for method in COMPLIANT
         for h in config.desired_heights
         for seed in seeds
     ]
@@ -188,7 +185,7 @@ def run_curves(config: ControllersConfig, **sweep: Any) -> pd.DataFrame:
     """Success against estimate error in both tasks, `curve_seeds` random episodes per error."""
     cells = [
         CurveCell(domain, float(error), seed)
-        for domain, errors, label in (("wiping", config.height_errors, 1), ("pushing", config.mass_errors, 2))
+        for label, (domain, errors) in enumerate(estimate_error_grids(config).items(), start=1)
         for error in errors
         for seed in child_seeds([config.seed, label], config.curve_seeds)
     ]

@@ -29,11 +29,9 @@ import numpy as np
 import pandas as pd
 
 from hipref.envs.low_level import REFERENCE
-from hipref.envs.pushing import PushingTask
-from hipref.envs.task import Task
-from hipref.envs.wiping import WipingTask
+from hipref.envs.task import ROUTES, Task
 from hipref.experiments.controllers import truth_and_estimate
-from hipref.experiments.domains import DOMAINS
+from hipref.experiments.domains import DOMAINS, estimate_error_grids
 from hipref.experiments.low_level import LowLevel, demonstrations, learned_policy, make_task
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
@@ -61,9 +59,6 @@ ROW_METRICS: tuple[str, ...] = (
     "param_error_multislice",
 )
 """The metrics of the study's rows."""
-ROUTES: tuple[str, ...] = ("both", "input", "path")
-"""How an estimate reaches a learned stroke: as the input and through the path ('both', what SI's estimate
-does), as the input alone (the path from the truth), or through the path alone (the input the truth)."""
 DOMAIN_ROUTES: dict[str, tuple[str, ...]] = {"wiping": ROUTES, "pushing": ROUTES[:1]}
 """The routes each domain's learned low level is compared by: a wiping stroke follows a path planned from
 the estimate and is given it as input, so the two can be told apart; a push takes the estimate only as
@@ -146,11 +141,8 @@ class LearnedControllerConfig(Protocol):
         if len(set(self.snapshots)) != len(self.snapshots):
             raise ValueError(f"snapshots must be distinct, got {list(self.snapshots)!r}")
         self.imitation(0.0)  # validates Algorithm 3's fields
-        for name, errors, domain in (
-            ("height_errors", self.height_errors, "wiping"),
-            ("mass_errors", self.mass_errors, "pushing"),
-        ):
-            candidates = DOMAINS[domain].candidates
+        for domain, errors in estimate_error_grids(self).items():
+            name, candidates = DOMAINS[domain].estimate_errors, DOMAINS[domain].candidates
             bound = (candidates.high - candidates.low) / 2
             if not any(error == 0.0 for error in errors):
                 raise ValueError(f"{name} must hold 0.0 (the true parameter), got {list(errors)!r}")
@@ -258,34 +250,10 @@ def _episode_metrics(
     task: Task, seed: int, error: float, route: str = "both"
 ) -> tuple[float, dict[str, float]]:
     """One episode (truth and layout from `seed`) executed with the estimate off the truth by `error`
-    (`truth_and_estimate`), in wiping by the `route` (`ROUTES`): its truth, and its success with wiping's
-    contact force over the stroke or pushing's final distance of the cube to its goal, along the push
-    (past the goal: positive) and across it."""
+    (`truth_and_estimate`), by the `route` (`ROUTES`): its truth, and its metrics (`Task.episode_metrics`)."""
     rng = np.random.default_rng(seed)
     truth, estimate = truth_and_estimate(rng, error, *task.parameter_range)
-    start, goal = task.sample_layout(rng)
-    if isinstance(task, WipingTask):
-        task.reset(truth, (float(start[0]), float(start[1])))
-        path, phi = {"both": (estimate, estimate), "input": (truth, estimate), "path": (estimate, truth)}[
-            route
-        ]
-        stroke = task.execute(goal, path, phi=phi)
-        return truth, {
-            "success_rate": stroke.success,
-            "force_mean": stroke.force.mean(),
-            "force_std": stroke.force.std(),
-        }
-    assert isinstance(task, PushingTask) and route == "both"
-    task.reset(truth, start, goal)
-    push = task.push(estimate)
-    along = (goal - start) / np.linalg.norm(goal - start)
-    miss = push.resting_xy - goal
-    return truth, {
-        "success_rate": push.success,
-        "goal_distance": push.final_error,
-        "goal_overshoot": float(miss @ along),
-        "goal_sideways": abs(float(miss[0] * along[1] - miss[1] * along[0])),
-    }
+    return truth, task.episode_metrics(truth, estimate, task.sample_layout(rng), route)
 
 
 def run_comparison_cell(cell: ComparisonCell) -> pd.DataFrame:
@@ -338,9 +306,7 @@ def comparison_cells(config: LearnedControllerConfig) -> list[ComparisonCell]:
     snapshot of the last reading's, and every low level on the held-out episodes."""
     analytic, learned = LowLevel(), config.learned()
     cells = []
-    for label, (domain, errors) in enumerate(
-        (("wiping", config.height_errors), ("pushing", config.mass_errors))
-    ):
+    for label, (domain, errors) in enumerate(estimate_error_grids(config).items()):
         seeds = tuple(child_seeds([config.comparison_seed, label], config.episodes_per_error))
         held_out = tuple(child_seeds([config.held_out_seed, label], config.held_out_episodes))
         routes = DOMAIN_ROUTES[domain]

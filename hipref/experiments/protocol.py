@@ -8,7 +8,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from hipref.experiments.domains import domain_spec
+from hipref.experiments.domains import DOMAINS, domain_spec, truth_grids
+from hipref.experiments.si_methods import COTEACHING_METHODS, LEARNING_METHODS
 from hipref.experiments.si_pretraining import PretrainCell, PretrainData, pretrain_models
 from hipref.experiments.si_run import FineTuning, SIRun
 from hipref.sweep import CacheDir
@@ -48,8 +49,8 @@ class Protocol:
     """Gradient step size of SI fine-tuning (A.7: 0.01)."""
 
     def __post_init__(self) -> None:
-        for name, values, domain in (("heights", self.heights, "wiping"), ("masses", self.masses, "pushing")):
-            candidates = domain_spec(domain).candidates
+        for domain, values in truth_grids(self).items():
+            name, candidates = DOMAINS[domain].truths, DOMAINS[domain].candidates
             if not values:
                 raise ValueError(
                     f"{name} must hold at least one value in [{candidates.low}, {candidates.high}], got ()"
@@ -70,8 +71,7 @@ class Protocol:
 
     def truths(self, domain: str) -> tuple[float, ...]:
         """The grid of true parameters of `domain`."""
-        grids = {"wiping": self.heights, "pushing": self.masses}
-        return grids[domain_spec(domain).name]
+        return truth_grids(self)[domain_spec(domain).name]
 
     def environments(self, domain: str) -> list[tuple[float, int]]:
         """Every (ground truth, seed) of `domain`: the grid crossed with the seeds."""
@@ -89,9 +89,9 @@ class Protocol:
         """One run of this protocol; `setting` holds what the study varies (noise, N). OSI learns nothing,
         so its run ignores the fine-tuning and the noise: one OSI run per environment serves every study."""
         tuning = fine_tuning if fine_tuning is not None else FineTuning(learning_rate=self.learning_rate)
-        if method == "osi":
+        if method not in LEARNING_METHODS:
             tuning, setting = FineTuning(), {k: v for k, v in setting.items() if k != "noise"}
-        elif not method.startswith("co_pesi"):
+        elif method not in COTEACHING_METHODS:
             # The classifier schedule means nothing without classifiers: such runs share one cache entry.
             tuning = dataclasses.replace(tuning, coteaching_schedule=FineTuning.coteaching_schedule)
         return SIRun(

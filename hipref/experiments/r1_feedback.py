@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,7 +48,6 @@ from hipref.sweep import NO_CACHE, CacheDir, Expect, cached_artefact, run_sweep
 from hipref.teachers.feedback import ScriptedFeedbackTeacher
 from hipref.validation import check_choice, check_int, check_range
 
-METHODS: tuple[str, ...] = ("tabular_coach", "pretrained_coach")
 START: Cell = (0, 0)
 """Every episode starts with the sponge above cell (0, 0), the start of the expert's sweep."""
 
@@ -205,6 +205,45 @@ def pretrained_episode(
     return len(wiped), actions, actions * config.chunk_periods * task.controller.substeps
 
 
+Episode = Callable[[np.random.Generator], tuple[int, int, int]]
+"""One learning episode of a method's learner: cells wiped, high-level decisions and physics steps."""
+
+
+def tabular_learner(cell: R1Cell, task: WipingTask, grid: WipingGrid) -> Episode:
+    """tabular_coach's episodes: tabular COACH told the grid expert's feedback."""
+    learner = TabularCoach(grid.n_states, grid.n_actions, CoachConfig(cell.config.coach_learning_rate))
+    teacher = ScriptedFeedbackTeacher(grid.expert)
+    return functools.partial(tabular_episode, task, grid, learner, teacher, cell.config)
+
+
+def pretrained_learner(cell: R1Cell, task: WipingTask, grid: WipingGrid) -> Episode:
+    """pretrained_coach's episodes: the behaviour-cloned policy told the low-level expert's feedback."""
+    config = cell.config
+    coach_config = PretrainedCoachConfig(
+        config.hidden, config.bc_epochs, learning_rate=config.policy_learning_rate
+    )
+    observations, actions = demonstrations(demo_spec(config))
+    policy = behaviour_cloning(observations, actions, len(DIRECTIONS), coach_config, cell.seed)
+    return functools.partial(
+        pretrained_episode,
+        task,
+        grid,
+        PretrainedCoach(policy, coach_config),
+        ScriptedFeedbackTeacher(low_level_expert(grid)),
+        config,
+    )
+
+
+LEARNERS: dict[str, Callable[[R1Cell, WipingTask, WipingGrid], Episode]] = {
+    "tabular_coach": tabular_learner,
+    "pretrained_coach": pretrained_learner,
+}
+"""Every method by name and how its learning episodes are built."""
+
+METHODS: tuple[str, ...] = tuple(LEARNERS)
+"""The methods' names, in LEARNERS' order."""
+
+
 def run_cell(cell: R1Cell) -> pd.DataFrame:
     """All learning episodes of one (method, seed): cells wiped per episode, as tidy rows."""
     config = cell.config
@@ -213,24 +252,7 @@ def run_cell(cell: R1Cell) -> pd.DataFrame:
     task = WipingTask()
     grid = WipingGrid(task.config.area_x, task.config.area_y)
     with one_thread():
-        if cell.method == "tabular_coach":
-            learner = TabularCoach(grid.n_states, grid.n_actions, CoachConfig(config.coach_learning_rate))
-            teacher = ScriptedFeedbackTeacher(grid.expert)
-            episode = functools.partial(tabular_episode, task, grid, learner, teacher, config)
-        else:
-            coach_config = PretrainedCoachConfig(
-                config.hidden, config.bc_epochs, learning_rate=config.policy_learning_rate
-            )
-            observations, actions = demonstrations(demo_spec(config))
-            policy = behaviour_cloning(observations, actions, len(DIRECTIONS), coach_config, cell.seed)
-            episode = functools.partial(
-                pretrained_episode,
-                task,
-                grid,
-                PretrainedCoach(policy, coach_config),
-                ScriptedFeedbackTeacher(low_level_expert(grid)),
-                config,
-            )
+        episode = LEARNERS[cell.method](cell, task, grid)
         rows = []
         for k in range(config.episodes):
             cells, decisions, steps = episode(rng)

@@ -14,7 +14,7 @@ from typing import Any
 
 import pandas as pd
 
-from hipref.experiments.domains import domain_spec
+from hipref.experiments.domains import DOMAINS, truth_grids
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
@@ -26,6 +26,11 @@ METHODS: dict[str, tuple[str, ...]] = {"wiping": ("osi", "pesi", "pesi_ce"), "pu
 
 HELD_OUT_METHODS: tuple[str, ...] = ("osi", "pesi")
 """The headline's methods, rerun on the held-out grid."""
+
+
+def held_out_field(domain: str) -> str:
+    """The field of `R1Config` holding `domain`'s held-out truths: 'held_out_' and the grid's field."""
+    return f"held_out_{DOMAINS[domain].truths}"
 
 
 @dataclass(frozen=True)
@@ -44,11 +49,9 @@ class R1Config(Protocol):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name, values, grid, domain in (
-            ("held_out_heights", self.held_out_heights, self.heights, "wiping"),
-            ("held_out_masses", self.held_out_masses, self.masses, "pushing"),
-        ):
-            candidates = domain_spec(domain).candidates
+        grids, held_out = truth_grids(self), self.held_out_grids()
+        for domain, values in held_out.items():
+            name, candidates, grid = held_out_field(domain), DOMAINS[domain].candidates, grids[domain]
             if not values:
                 low, high = candidates.low, candidates.high
                 raise ValueError(f"{name} must hold at least one value in [{low}, {high}]")
@@ -61,13 +64,15 @@ class R1Config(Protocol):
         for seed in self.held_out_seeds:
             check_int("held_out_seeds", seed, self.seeds)
 
+    def held_out_grids(self) -> dict[str, tuple[float, ...]]:
+        """Each domain's held-out true parameters (`held_out_field`)."""
+        return {domain: getattr(self, held_out_field(domain)) for domain in DOMAINS}
+
     def held_out(self) -> Protocol:
         """The held-out grid as a protocol of its own, evaluated after the last episode only."""
         shared = {f.name: getattr(self, f.name) for f in dataclasses.fields(Protocol)}
-        return Protocol(
-            **shared
-            | {"heights": self.held_out_heights, "masses": self.held_out_masses, "eval_every": self.episodes}
-        )
+        truths = {DOMAINS[domain].truths: grid for domain, grid in self.held_out_grids().items()}
+        return Protocol(**shared | truths | {"eval_every": self.episodes})
 
     def held_out_environments(self, domain: str) -> list[tuple[float, int]]:
         """Every (ground truth, seed) of `domain`'s held-out grid."""

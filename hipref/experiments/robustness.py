@@ -29,7 +29,6 @@ from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.learners.noise_rate import likelihood_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
-from hipref.learners.robust import buffer_preferences
 from hipref.numerics import one_thread
 from hipref.results import METRICS, tidy_rows
 from hipref.seeds import integer_seed
@@ -200,7 +199,7 @@ def run_teacher_noise(cell: TeacherNoiseCell) -> pd.DataFrame:
     metrics = {
         "true_noise": float(np.mean(teacher.wrong_labels)) if labelled else np.nan,
         "estimated_noise": (
-            likelihood_noise(buffer_preferences(learner), phi.low, phi.high) if labelled else np.nan
+            likelihood_noise(learner.buffer_preferences(), phi.low, phi.high) if labelled else np.nan
         ),
         "unlabelled_share": 1.0 - labelled / cell.episodes,
     }

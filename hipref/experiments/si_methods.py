@@ -109,6 +109,17 @@ model of the teacher chosen by marginal likelihood unless told; bayes_si: that p
 METHODS: tuple[str, ...] = tuple(LEARNERS)
 """The methods' names, in LEARNERS' order."""
 
+LEARNING_METHODS: frozenset[str] = frozenset(METHODS) - {"osi"}
+"""Methods whose learner is told preferences (OSI keeps the pretrained SI)."""
+
+COTEACHING_METHODS: frozenset[str] = frozenset({"co_pesi", "co_pesi_estimated", "co_pesi_likelihood"})
+"""Methods filtering with co-teaching classifiers (Algorithm 1), which `FineTuning.coteaching_schedule`
+refreshes."""
+
+BAYES_METHODS: frozenset[str] = frozenset({"bayes", "bayes_si"})
+"""Methods of the Bayesian learner, which may be told of the teacher (`SIRun.told`) and draws its queries
+uniformly or by a rule."""
+
 PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce", "bayes", "bayes_si"}
 """Methods defined on pairs only (N = 2): classifiers of pairs, or losses mixing y and -y."""
 

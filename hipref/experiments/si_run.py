@@ -28,7 +28,7 @@ from hipref.experiments.domains import domain_spec
 from hipref.experiments.low_level import make_task
 from hipref.experiments.si_clips import LearningSpec, learning_clips, run_streams
 from hipref.experiments.si_evaluation import EvaluationSpec, estimator, evaluate, evaluation_episodes
-from hipref.experiments.si_methods import METHODS, PAIR_METHODS, make_learner
+from hipref.experiments.si_methods import BAYES_METHODS, METHODS, PAIR_METHODS, make_learner
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.learners.answer_models import TOLD
 from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS
@@ -139,9 +139,9 @@ class SIRun:
         check_int("eval_episodes", self.eval_episodes, 1)
         check_int("eval_slices", self.eval_slices, 1)
         check_choice("told", self.told, TOLD)
-        if self.told != "nothing" and self.method not in ("bayes", "bayes_si"):
+        if self.told != "nothing" and self.method not in BAYES_METHODS:
             raise ValueError(f"told is for the 'bayes' method, got method {self.method!r}")
-        if self.method.startswith("bayes") and self.fine_tuning.candidate_sampling == "belief":
+        if self.method in BAYES_METHODS and self.fine_tuning.candidate_sampling == "belief":
             raise ValueError(
                 "candidate_sampling 'belief' is PESI's; the 'bayes' method takes 'uniform' or a rule"
             )
@@ -159,8 +159,9 @@ class SIRun:
 def run_si(cell: SIRun) -> pd.DataFrame:
     """One run of `cell` (a sweep cell function): tidy rows of every metric per evaluation.
 
-    CO-PESI runs also report the precision and recall of their filter against the flips the scripted
-    teacher recorded (never shown to the learner), counted over the learning so far.
+    Learners with a filter (`filter_precision_recall` not None) also report its precision and recall
+    against the flips the scripted teacher recorded (never shown to the learner), counted over the
+    learning so far.
     """
     model = pretrained_model(cell.domain, cell.data)
     with one_thread():
@@ -196,9 +197,9 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             if episode in evaluated_at:
                 current = estimator(model if learner is None else learner)
                 metrics = evaluate(task, current, checkpoints[evaluated_at.index(episode)], truth)
-                if learner is not None and hasattr(learner, "filter_precision_recall"):
-                    precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
-                    metrics |= {"filter_precision": precision, "filter_recall": recall}
+                quality = None if learner is None else learner.filter_precision_recall(teacher.wrong_labels)
+                if quality is not None:
+                    metrics |= {"filter_precision": quality[0], "filter_recall": quality[1]}
                 rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
             if episode == cell.episodes or learner is None:
                 continue

@@ -15,7 +15,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from hipref.learners.coteaching_pair import CoTeachingPair, classifier_inputs
-from hipref.learners.noise_estimation import CONFLICTS, DEFAULT_CONFLICT, PreferenceSet, estimate_noise
+from hipref.learners.noise_estimation import CONFLICTS, DEFAULT_CONFLICT, estimate_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
 from hipref.seeds import integer_seed
@@ -154,6 +154,39 @@ class SIUpdateRecord(NamedTuple):
     """The entries of b not in b_0, i.e. not shown to SI (empty before co-teaching starts)."""
 
 
+def filter_quality(
+    si_updates: Sequence[SIUpdateRecord], flipped: Sequence[bool] | np.ndarray, size: int
+) -> tuple[float, float]:
+    """A filter's precision and recall against the teacher's flips, over the SI updates `si_updates` of a
+    buffer D of `size` preferences.
+
+    flipped[i] says whether the teacher flipped the i-th preference of D (a scripted teacher knows; the
+    learner never uses it). The counting unit is one (SI update, buffer entry) occurrence: an entry that
+    sits in the batches of k updates counts k times, and an entry forgotten by k of them counts k times as
+    forgotten. With F the forgotten occurrences and B the batch occurrences,
+
+        precision = |flipped occurrences in F| / |F|,
+        recall    = |flipped occurrences in F| / |flipped occurrences in B|.
+
+    Updates before the filter starts (CO-PESI's `update_before_start`) forget nothing and count in B, so
+    recall measures how many of the flipped labels SI was offered the filter kept from it. Either is NaN
+    when its denominator is 0 (nothing forgotten; no flipped entry in any batch).
+    """
+    flags = np.asarray(flipped)
+    if flags.shape != (size,):
+        raise ValueError(f"flipped must hold one flag per preference in D ({size}), got shape {flags.shape}")
+    if flags.dtype != np.bool_:
+        if not np.isin(flags, (0, 1)).all():
+            raise ValueError(f"flipped must hold booleans, got values {np.unique(flags).tolist()!r}")
+        flags = flags.astype(bool)
+    forgotten = sum(len(r.forgotten) for r in si_updates)
+    flipped_forgotten = sum(int(flags[r.forgotten].sum()) for r in si_updates)
+    flipped_offered = sum(int(flags[r.batch].sum()) for r in si_updates)
+    precision = flipped_forgotten / forgotten if forgotten else math.nan
+    recall = flipped_forgotten / flipped_offered if flipped_offered else math.nan
+    return precision, recall
+
+
 class CoPESILearner(PESILearner):
     """Algorithm 1 through the same ask/tell/estimate as PESILearner; only the learning step differs.
 
@@ -260,35 +293,8 @@ class CoPESILearner(PESILearner):
         self.si_updates.append(SIUpdateRecord(np.array(batch), np.array(forgotten)))
 
     def filter_precision_recall(self, flipped: Sequence[bool] | np.ndarray) -> tuple[float, float]:
-        """The filter's precision and recall against the teacher's flips, over every SI update so far.
-
-        flipped[i] says whether the teacher flipped the i-th preference of D (a scripted teacher knows;
-        the learner never uses it). The counting unit is one (SI update, buffer entry) occurrence: an
-        entry that sits in the batches of k updates counts k times, and an entry forgotten by k of them
-        counts k times as forgotten. With F the forgotten occurrences and B the batch occurrences,
-
-            precision = |flipped occurrences in F| / |F|,
-            recall    = |flipped occurrences in F| / |flipped occurrences in B|.
-
-        Updates before co-teaching starts (`update_before_start`) forget nothing and count in B, so recall
-        measures how many of the flipped labels SI was offered the filter kept from it. Either is NaN when
-        its denominator is 0 (nothing forgotten; no flipped entry in any batch).
-        """
-        flags = np.asarray(flipped)
-        if flags.shape != (len(self),):
-            raise ValueError(
-                f"flipped must hold one flag per preference in D ({len(self)}), got shape {flags.shape}"
-            )
-        if flags.dtype != np.bool_:
-            if not np.isin(flags, (0, 1)).all():
-                raise ValueError(f"flipped must hold booleans, got values {np.unique(flags).tolist()!r}")
-            flags = flags.astype(bool)
-        forgotten = sum(len(r.forgotten) for r in self.si_updates)
-        flipped_forgotten = sum(int(flags[r.forgotten].sum()) for r in self.si_updates)
-        flipped_offered = sum(int(flags[r.batch].sum()) for r in self.si_updates)
-        precision = flipped_forgotten / forgotten if forgotten else math.nan
-        recall = flipped_forgotten / flipped_offered if flipped_offered else math.nan
-        return precision, recall
+        """The filter's precision and recall against the teacher's flips (`filter_quality`)."""
+        return filter_quality(self.si_updates, flipped, len(self))
 
 
 class EstimatedNoiseCoPESILearner(CoPESILearner):
@@ -320,15 +326,12 @@ class EstimatedNoiseCoPESILearner(CoPESILearner):
         self.conflict = conflict
         self.noise_history: list[float] = []
 
-    def buffer_preferences(self) -> PreferenceSet:
-        """D as Algorithm 5's input: the two candidates of each query and its label y (Eq. 2)."""
-        values = self.candidates.values
-        indices = np.stack(self._indices)
-        labels = np.stack(self._labels)[:, 0]
-        return PreferenceSet(first=values[indices[:, 0]], second=values[indices[:, 1]], label=labels)
+    def estimated_noise_level(self) -> float:
+        """The noise level of D: Algorithm 5 on `buffer_preferences`, a conflict read as `conflict`."""
+        return estimate_noise(self.buffer_preferences(), self.conflict)
 
     def _learn(self) -> None:
         if len(self) > self.config.start_size:
-            self.noise_level = estimate_noise(self.buffer_preferences(), self.conflict)
+            self.noise_level = self.estimated_noise_level()
             self.noise_history.append(self.noise_level)
         super()._learn()

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import copy
 import operator
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from hipref.learners.answer_models import AnswerModel
+from hipref.learners.noise_estimation import PreferenceSet
 from hipref.learners.queries import CHOSEN, choose_pair
 from hipref.learners.sysid import SIModel
 from hipref.teachers.preference import NoLabel, PreferenceQuery, preference_label_vector
@@ -204,6 +205,19 @@ class PESILearner:
     def __len__(self) -> int:
         """|D|, the number of preferences received."""
         return len(self._labels)
+
+    def buffer_preferences(self) -> PreferenceSet:
+        """D as a preference dataset (Algorithm 5's input): the first two candidates of each query and its
+        label y (Eq. 2)."""
+        values = self.candidates.values
+        indices = np.stack(self._indices)
+        labels = np.stack(self._labels)[:, 0]
+        return PreferenceSet(first=values[indices[:, 0]], second=values[indices[:, 1]], label=labels)
+
+    def filter_precision_recall(self, flipped: Sequence[bool] | np.ndarray) -> tuple[float, float] | None:
+        """The precision and recall of the learner's filter of flipped preferences against the teacher's
+        record `flipped`; None: PESI filters nothing (learners with a filter override it)."""
+        return None
 
     def _check_features(self, features: np.ndarray) -> np.ndarray:
         features = np.asarray(features, dtype=np.float64)

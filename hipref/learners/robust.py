@@ -19,18 +19,18 @@ The flip rate e, where a learner needs one, is the maximum marginal likelihood e
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from hipref.learners.coteaching import (
-    CoPESILearner,
     EstimatedNoiseCoPESILearner,
     SIUpdateRecord,
+    filter_quality,
 )
 from hipref.learners.coteaching_pair import coteach_select
-from hipref.learners.noise_estimation import PreferenceSet
 from hipref.learners.noise_rate import likelihood_noise
 from hipref.learners.pesi import PESIConfig, PESILearner, log_probs, pesi_loss
 from hipref.learners.sysid import SIModel
@@ -74,18 +74,10 @@ def preference_nll(log_probs_pair: torch.Tensor, y: torch.Tensor) -> torch.Tenso
     return -log_probs_pair.gather(1, preferred).squeeze(1)
 
 
-def buffer_preferences(learner: PESILearner) -> PreferenceSet:
-    """The buffer D of a pair learner as a PreferenceSet: (phi_0, phi_1, y) per stored preference."""
-    values = learner.candidates.values
-    indices = np.stack(learner._indices)
-    labels = np.stack(learner._labels)[:, 0]
-    return PreferenceSet(first=values[indices[:, 0]], second=values[indices[:, 1]], label=labels)
-
-
 def estimated_flip_rate(learner: PESILearner, cap: float = 0.5) -> float:
     """The maximum marginal likelihood flip rate of the learner's buffer D, at most `cap`."""
     phi = learner.candidates
-    return min(cap, likelihood_noise(buffer_preferences(learner), phi.low, phi.high))
+    return min(cap, likelihood_noise(learner.buffer_preferences(), phi.low, phi.high))
 
 
 @dataclass(frozen=True)
@@ -167,8 +159,10 @@ class _RobustLearner(PESILearner):
         self.noise_history.append(rate)
         return rate
 
-    # The filter's score against the teacher's record, counted as CO-PESI's (forgotten = not used as told).
-    filter_precision_recall = CoPESILearner.filter_precision_recall
+    def filter_precision_recall(self, flipped: Sequence[bool] | np.ndarray) -> tuple[float, float]:
+        """The filter's score against the teacher's record, counted as CO-PESI's (`filter_quality`;
+        forgotten = not used as told)."""
+        return filter_quality(self.si_updates, flipped, len(self))
 
 
 class LabelSmoothingPESILearner(_RobustLearner):
@@ -259,8 +253,6 @@ class LikelihoodNoiseCoPESILearner(EstimatedNoiseCoPESILearner):
     marginal likelihood flip rate of D (`likelihood_noise`) instead of Algorithm 5's estimate; re-estimated
     at the same moments as co_pesi_estimated's (A.9), before each co-teaching preference."""
 
-    def _learn(self) -> None:
-        if len(self) > self.config.start_size:
-            self.noise_level = estimated_flip_rate(self)
-            self.noise_history.append(self.noise_level)
-        CoPESILearner._learn(self)
+    def estimated_noise_level(self) -> float:
+        """The noise level of D: its maximum marginal likelihood flip rate (`estimated_flip_rate`)."""
+        return estimated_flip_rate(self)

@@ -229,8 +229,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--queries", type=int, default=12, help="preference queries per condition")
     parser.add_argument("--catch-every", type=int, default=4, help="every n-th query a catch trial")
     parser.add_argument("--domain", default="wiping", choices=list(TASKS))
+    parser.add_argument(
+        "--true-parameter", type=float, default=None,
+        help="the world's true parameter (default: the middle of the domain's range, 0.7 m or 14 kg)",
+    )  # fmt: skip
     parser.add_argument("--port", type=int, default=8866)
     args = parser.parse_args(argv)
+    candidates = domain_spec(args.domain).candidates
+    middle = round((candidates.low + candidates.high) / 2, 6)
+    truth = middle if args.true_parameter is None else args.true_parameter
     parameters = {
         "teacher": "person",
         "participant": args.participant,
@@ -238,9 +245,8 @@ def main(argv: list[str] | None = None) -> None:
         "preference_queries": args.queries,
         "catch_every": args.catch_every,
         "domain": args.domain,
+        "true_parameter": truth,
     }
-    if args.domain == "pushing":
-        parameters["true_parameter"] = 14.0
     TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})  # bad values refused here
     root = repo_root() or Path.cwd()
     with tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder:

@@ -71,16 +71,32 @@ def session_streams(config: TeachConfig) -> SessionStreams:
     return SessionStreams(*np.random.SeedSequence([config.seed, 9]).spawn(5))
 
 
-def make_learner(config: TeachConfig, model: SIModel, learner: str | None = None) -> Learner:
-    """The session's learner (`config.learner`, or `learner`) with its query rule, seeded by the session."""
+def bayes_learner(config: TeachConfig, model: SIModel, seed: int) -> Learner:
+    """The Bayesian learner with the session's query rule, its prior SI's on the slice."""
+    candidates = domain_spec(config.domain).candidates
+    return BayesLearner(candidates, BayesConfig(query_rule=config.query_rule), seed, si_model=model)
+
+
+def pesi_learner(config: TeachConfig, model: SIModel, seed: int) -> Learner:
+    """PESI with the session's query rule on the domain's batch size."""
     spec = domain_spec(config.domain)
-    seed = integer_seed(session_streams(config).learner)
-    if (learner or config.learner) == "bayes":
-        return BayesLearner(spec.candidates, BayesConfig(query_rule=config.query_rule), seed, si_model=model)
     pesi = PESIConfig(
         batch_size=spec.batch_size, history=config.data.history, candidate_sampling=config.query_rule
     )
     return PESILearner(model, pesi, seed)
+
+
+SESSION_LEARNERS: dict[str, Callable[[TeachConfig, SIModel, int], Learner]] = {
+    "bayes": bayes_learner,
+    "pesi": pesi_learner,
+}
+"""How each of `hipref.teach.config.LEARNERS` is built from the session's config, SI and seed."""
+
+
+def make_learner(config: TeachConfig, model: SIModel, learner: str | None = None) -> Learner:
+    """The session's learner (`config.learner`, or `learner`) with its query rule, seeded by the session."""
+    seed = integer_seed(session_streams(config).learner)
+    return SESSION_LEARNERS[learner or config.learner](config, model, seed)
 
 
 def evaluation_slices(config: TeachConfig, task: Task) -> np.ndarray:

@@ -13,7 +13,7 @@ left out of every count but their own.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -24,6 +24,7 @@ from hipref.learners.coteaching import CoPESIConfig, EstimatedNoiseCoPESILearner
 from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
 from hipref.learners.noise_rate import likelihood_noise, repeated_pair_noise
 from hipref.learners.pesi import PESILearner
+from hipref.learners.sysid import SIModel
 from hipref.seeds import integer_seed
 from hipref.teach.config import TeachConfig
 from hipref.teach.preferences import (
@@ -38,8 +39,28 @@ from hipref.teach.session import SessionFile
 from hipref.teachers.preference import PreferenceQuery, pair_labels
 from hipref.validation import check_choice
 
-REPLAYED: tuple[str, ...] = ("pesi", "co_pesi_estimated", "bayes")
-"""Learners a session can be replayed into."""
+
+def estimated_noise_learner(config: TeachConfig, model: SIModel) -> Learner:
+    """CO-PESI with Algorithm 5's noise level (co_pesi_estimated), seeded by the session."""
+    spec = domain_spec(config.domain)
+    coteaching = CoPESIConfig(
+        batch_size=spec.batch_size,
+        history=config.data.history,
+        start_size=spec.batch_size,
+        refresh_frequency=spec.refresh_frequency,
+    )
+    return EstimatedNoiseCoPESILearner(model, coteaching, integer_seed(session_streams(config).learner))
+
+
+REPLAYERS: dict[str, Callable[[TeachConfig, SIModel], Learner]] = {
+    "pesi": lambda config, model: make_learner(config, model, "pesi"),
+    "co_pesi_estimated": estimated_noise_learner,
+    "bayes": lambda config, model: make_learner(config, model, "bayes"),
+}
+"""Learners a session can be replayed into, and how each is built."""
+
+REPLAYED: tuple[str, ...] = tuple(REPLAYERS)
+"""Their names."""
 
 
 class RecordedPreferenceTeacher:
@@ -70,21 +91,7 @@ def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str =
     physics). It is told the queries the person answered, whichever learner asked them; a session's own
     learner is rebuilt exactly."""
     check_choice("method", method, REPLAYED)
-    spec = domain_spec(config.domain)
-    model = pretrained_model(config.domain, config.data)
-    learner: Learner
-    if method == "co_pesi_estimated":
-        coteaching = CoPESIConfig(
-            batch_size=spec.batch_size,
-            history=config.data.history,
-            start_size=spec.batch_size,
-            refresh_frequency=spec.refresh_frequency,
-        )
-        learner = EstimatedNoiseCoPESILearner(
-            model, coteaching, integer_seed(session_streams(config).learner)
-        )
-    else:
-        learner = make_learner(config, model, method)
+    learner = REPLAYERS[method](config, pretrained_model(config.domain, config.data))
     for record in records:
         if record.get("catch", False):  # catch trials are not told (`hipref.teach.preferences`)
             continue
