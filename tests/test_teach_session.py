@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -303,11 +304,21 @@ def test_nothing_is_prepared_once_every_query_is_answered(results):
         session.close()
 
 
-def test_before_and_after_executes_the_task_with_both_estimates(results):
+def test_before_and_after_executes_the_task_with_both_estimates(results, monkeypatch):
     from hipref.teach.outcome import before_and_after
 
     config = TeachConfig(**SMALL, true_parameter=0.62)
     teaching = PreferenceTeaching(config, open_session(config), render=False)
+    # The session's physics is the thread's that prepares the next query; the outcome, executed while it
+    # does, must not step it too (two threads on one MjData corrupt both the strokes and the next slice).
+    executing = set()
+    rollout = teaching._task.rollout
+
+    def recorded(*args, **kwargs):
+        executing.add(threading.current_thread().name)
+        return rollout(*args, **kwargs)
+
+    monkeypatch.setattr(teaching._task, "rollout", recorded)
     for answer in ("left", "right"):
         teaching.answer(answer, 1.0)
     outcome = before_and_after(teaching, attempts=2)
@@ -316,6 +327,7 @@ def test_before_and_after_executes_the_task_with_both_estimates(results):
     assert outcome["error_before"] == pytest.approx(abs(0.7 - 0.62))
     assert {outcome["success_before"], outcome["success_after"]} <= {0.0, 0.5, 1.0}
     teaching.close()
+    assert executing and all(name.startswith("hipref-next-query") for name in executing)
 
 
 def test_every_answer_names_its_query_and_a_second_answer_to_one_is_refused(results, tmp_path):

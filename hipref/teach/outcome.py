@@ -1,9 +1,16 @@
-"""What a teaching session changed: the robot executing the task with the estimate before and after it."""
+"""What a teaching session changed: the robot executing the task with the estimate before and after it.
+
+The task is executed on physics of its own: the session's is the background thread's, which may be preparing
+the next query meanwhile (two threads stepping one MjData corrupt both strokes: the outcome and the next
+query's slice).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
+from hipref.envs.task import Task
+from hipref.experiments.domains import domain_spec
 from hipref.teach.clips import side_by_side_gif
 from hipref.teach.preferences import PreferenceTeaching
 from hipref.validation import check_int
@@ -12,11 +19,16 @@ OUTCOME_STREAM = 10
 """Salt of the seed sequence the attempts' layouts are drawn from (apart from every stream of the session)."""
 
 
+def own_task(teaching: PreferenceTeaching) -> Task:
+    """A task of the session's domain apart from the session's (whose thread may be executing a query)."""
+    return domain_spec(teaching.config.domain).make_task()
+
+
 def before_and_after(teaching: PreferenceTeaching, attempts: int = 20) -> dict[str, float]:
     """The estimate before any answer and now, their errors, and the task's success with each on the same
     `attempts` layouts (MuJoCo, the real controllers)."""
     check_int("attempts", attempts, 1)
-    task, truth = teaching.task, teaching.truth
+    task, truth = own_task(teaching), teaching.truth
     rng = np.random.default_rng(np.random.SeedSequence([teaching.config.seed, OUTCOME_STREAM]))
     layouts = [task.sample_layout(rng) for _ in range(attempts)]
     result: dict[str, float] = {}
@@ -32,7 +44,7 @@ def before_and_after(teaching: PreferenceTeaching, attempts: int = 20) -> dict[s
 def before_and_after_clip(teaching: PreferenceTeaching) -> bytes | None:
     """The task executed from one layout with the estimate before the session (left) and now (right), a
     looping GIF; None where no GL is."""
-    task, config = teaching.task, teaching.config
+    task, config = own_task(teaching), teaching.config
     layout = task.sample_layout(np.random.default_rng(np.random.SeedSequence([config.seed, OUTCOME_STREAM])))
     frames = [
         task.clip_frames(teaching.truth, estimate, layout, config.frames)

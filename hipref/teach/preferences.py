@@ -27,7 +27,7 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -201,7 +201,9 @@ class PreferenceTeaching:
         self.session = session
         self.render = render
         spec = domain_spec(config.domain)
-        self.task = spec.make_task()
+        self._task = spec.make_task()
+        """The physics the queries are executed on, by the thread preparing the next query while the person
+        watches: nothing else may execute on it (`hipref.teach.outcome` builds a task of its own)."""
         self.truth = config.true_parameter
         self.history = config.data.history
         streams = session_streams(config)
@@ -212,7 +214,7 @@ class PreferenceTeaching:
             np.random.default_rng(streams.sides),
             np.random.default_rng(streams.slices),
         )
-        self.evaluation = evaluation_slices(config, self.task)
+        self.evaluation = evaluation_slices(config, self._task)
         self.initial_estimate = running_estimate(self._asker.learner, self.evaluation)
         """The estimate before any answer: what the controller had without the person."""
         # A chosen query rule makes the next query depend on the answer.
@@ -254,12 +256,12 @@ class PreferenceTeaching:
     ) -> ShownQuery:
         """Ask `asker`'s learner for query `number`; from `record`'s slice when it was answered. Its clips
         are rendered unless `wanted()` says by then that the query will not be shown."""
-        layout: Layout = self.task.sample_layout(asker.layouts)
+        layout: Layout = self._task.sample_layout(asker.layouts)
         executed: list[Clip] = []
         if record is None:
 
             def observe(phi: float, rng: np.random.Generator) -> np.ndarray:
-                executed.append(clip(self.task, self.truth, phi, layout, self.history, rng))
+                executed.append(clip(self._task, self.truth, phi, layout, self.history, rng))
                 return executed[-1].tau
 
         else:
@@ -292,7 +294,7 @@ class PreferenceTeaching:
         animation = None
         if record is None and self.render and wanted():
             frames = [
-                self.task.clip_frames(self.truth, query.candidates[i], layout, self.config.frames)
+                self._task.clip_frames(self.truth, query.candidates[i], layout, self.config.frames)
                 for i in order
             ]
             clips = [f for f in frames if f is not None]
@@ -307,7 +309,9 @@ class PreferenceTeaching:
 
     def prepare_apart(self, number: int) -> ShownQuery:
         """Query `number` asked, executed and rendered on a copy of the session's learner and streams,
-        nothing kept: what a query costs when nothing was prepared ahead (`hipref.bench.teach`)."""
+        nothing kept: what a query costs when nothing was prepared ahead (`hipref.bench.teach`). Waits for
+        the query being prepared in the background first: both execute on the session's task."""
+        wait(self._next.values())
         return self._prepare(number, None, copy.deepcopy(self._asker))
 
     def _branch(
