@@ -44,7 +44,10 @@ class AnswerPanel:
     KEYS: ClassVar[Mapping[str, Any]] = {}
     """Key -> the answer it gives."""
 
-    def _build(self, css_class: str, children: list[widgets.Widget]) -> None:
+    def _build(self, css_class: str, children: list[widgets.Widget], teacher: str) -> None:
+        self.scripted = teacher == "scripted"
+        """A person's answer times are measured; the scripted stand-in answers the moment a question is
+        shown (0 s), so that its session file is the same bytes on every run."""
         self.widget = widgets.VBox(children)
         self.widget.add_class(css_class)
         self.keys = Event(source=self.widget, watched_events=["keydown"], prevent_default_action=True)
@@ -64,7 +67,7 @@ class AnswerPanel:
         if self._finished():
             return
         pressed = time.perf_counter()
-        self._answer(value, pressed - self._shown_at)
+        self._answer(value, 0.0 if self.scripted else pressed - self._shown_at)
         self._show()
         self._shown_at = time.perf_counter()
         self.waits.append(self._shown_at - pressed)
@@ -95,7 +98,11 @@ class PreferenceApp(AnswerPanel):
         self.progress = widgets.IntProgress(min=0, max=teaching.config.preference_queries)
         self.status = widgets.HTML()
         buttons = widgets.HBox(list(self.buttons.values()))
-        self._build("hipref-preferences", [self.heading, self.clips, buttons, self.progress, self.status])
+        self._build(
+            "hipref-preferences",
+            [self.heading, self.clips, buttons, self.progress, self.status],
+            teaching.config.teacher,
+        )
 
     def _finished(self) -> bool:
         return self.teaching.current is None
@@ -153,7 +160,9 @@ class FeedbackApp(AnswerPanel):
         self.heading = widgets.HTML()
         self.progress = widgets.IntProgress(min=0, max=teaching.config.feedback_steps)
         buttons = widgets.HBox(list(self.buttons.values()))
-        self._build("hipref-feedback", [self.heading, self.grid, buttons, self.progress])
+        self._build(
+            "hipref-feedback", [self.heading, self.grid, buttons, self.progress], teaching.config.teacher
+        )
 
     def _finished(self) -> bool:
         return self.teaching.done
