@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import itertools
 import json
 import os
 import signal
@@ -11,6 +12,7 @@ import sys
 import textwrap
 import threading
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -281,6 +283,20 @@ def test_the_widgets_answer_by_button_and_by_key(results):
     assert feedback.teaching.done and all(b.disabled for b in feedback.buttons.values())
     assert "<svg" in feedback.grid.value
     preferences.teaching.close()
+
+
+def test_the_scripted_stand_in_records_no_wall_clock_time(results, monkeypatch):
+    # It answers the moment a question is shown, so that its session file is the same bytes on every run;
+    # here every answer would otherwise take a second or more.
+    monkeypatch.setattr("hipref.teach.app.time", SimpleNamespace(perf_counter=itertools.count().__next__))
+    config = TeachConfig(**{**SMALL, "teacher": "scripted", "preference_queries": 2})
+    session = open_session(config)
+    preferences = PreferenceApp(PreferenceTeaching(config, session, render=False))
+    answer_preferences_as_scripted(preferences, noise=0.2, seed=0)
+    preferences.teaching.close()
+    answer_feedback_as_scripted(FeedbackApp(FeedbackTeaching(config, session)))
+    assert len(session.records) == 2 + 4
+    assert {record["seconds"] for record in session.records} == {0.0}
 
 
 def test_config_refuses_bad_values():

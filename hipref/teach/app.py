@@ -67,7 +67,10 @@ class AnswerPanel:
     """Key -> the answer it gives."""
     buttons: Mapping[Any, widgets.Button]
 
-    def _build(self, css_class: str, children: list[widgets.Widget], keys: str) -> None:
+    def _build(self, css_class: str, children: list[widgets.Widget], keys: str, teacher: str) -> None:
+        self.scripted = teacher == "scripted"
+        """A person's answer times are measured; the scripted stand-in answers the moment a question is
+        shown (0 s), so that its session file is the same bytes on every run."""
         self.keys_hint = widgets.HTML(KEYS_HINT.replace("{keys}", html.escape(keys)))
         self.message = widgets.HTML()
         """A failed write, in red; empty otherwise."""
@@ -134,7 +137,7 @@ class AnswerPanel:
         self._set_buttons(False)
         pressed = time.perf_counter()
         try:
-            self._answer(value, pressed - self._shown_at)
+            self._answer(value, 0.0 if self.scripted else pressed - self._shown_at)
         except (OSError, SessionLocked, AnswerRefused) as error:
             self.error = error
             self.message.value = (
@@ -187,7 +190,7 @@ class PreferenceApp(AnswerPanel):
         self.status = widgets.HTML()
         buttons = widgets.HBox(list(self.buttons.values()))
         children = [self.heading, self.clips, buttons, self.progress, self.status]
-        self._build("hipref-preferences", children, "← → ↓")
+        self._build("hipref-preferences", children, "← → ↓", teaching.config.teacher)
 
     def _finished(self) -> bool:
         return self.teaching.current is None
@@ -243,7 +246,8 @@ class FeedbackApp(AnswerPanel):
         self.heading = widgets.HTML()
         self.progress = widgets.IntProgress(min=0, max=teaching.config.feedback_steps)
         buttons = widgets.HBox(list(self.buttons.values()))
-        self._build("hipref-feedback", [self.heading, self.grid, buttons, self.progress], "1, 0, −")
+        children = [self.heading, self.grid, buttons, self.progress]
+        self._build("hipref-feedback", children, "1, 0, −", teaching.config.teacher)
 
     def _finished(self) -> bool:
         return self.teaching.done

@@ -27,14 +27,14 @@ from hipref.learners.pesi import PESILearner
 from hipref.learners.sysid import SIModel
 from hipref.seeds import integer_seed
 from hipref.teach.config import TeachConfig
-from hipref.teach.preferences import (
+from hipref.teach.learner import (
     Learner,
     evaluation_slices,
     make_learner,
     running_estimate,
     session_streams,
-    tell,
 )
+from hipref.teach.preferences import tell
 from hipref.teach.session import SessionFile
 from hipref.teachers.preference import PreferenceQuery, pair_labels
 from hipref.validation import check_choice
