@@ -53,7 +53,7 @@ endif
 # Times measured on the 2-core machine of the README's "Time" section.
 help:
 	@echo 'make reproduce PROFILE=quick  every notebook at the quick profile into results/quick/ (about 4 min)'
-	@echo 'make reproduce                every notebook at the paper scale: rewrites the committed results/ (about 25 min)'
+	@echo 'make reproduce                every notebook at the paper scale: rewrites the committed results/ (25-35 min)'
 	@echo 'make notebooks                re-executes notebooks/ in place at the quick profile (about 4 min)'
 	@echo 'make test                     lint, typecheck, pytest and nbval; writes no tracked file (about 7 min)'
 	@echo 'make lint                     ruff on the package, tests and notebooks (seconds)'
