@@ -9,7 +9,7 @@ from pathlib import Path
 import pandas as pd
 
 from hipref import verdicts
-from hipref.experiments.noise_estimation import overestimate, paper_distance
+from hipref.experiments.noise_estimation import ESTIMATED_NOISE_METHODS, overestimate, paper_distance
 from hipref.experiments.r3_copesi import final_difference
 from hipref.experiments.robustness import NOISE_TOLERANCE, best_learner, noise_table
 from hipref.readme_format import FINE_UNITS, UNITS, WORDS, csv, interval, percent, signed
@@ -25,11 +25,11 @@ def _final(
 PAPER_LEVELS: tuple[float, ...] = (0.1, 0.2)
 """The flip rates at which the paper says CO-PESI beats PESI (Figs. 3, 5)."""
 
-ESTIMATED_READINGS: dict[str, str] = {
-    "co_pesi_estimated": "two preferences no parameter satisfies",
-    "co_pesi_estimated_same_pair": "opposite answers to the same pair",
+CONFLICT_WORDS: dict[str, str] = {
+    "no_common_parameter": "two preferences no parameter satisfies",
+    "same_pair": "opposite answers to the same pair",
 }
-"""Notebook 06's CO-PESI with the noise estimated by Algorithm 5, per reading of a conflict."""
+"""Each reading of a conflict (`hipref.learners.noise_estimation.CONFLICTS`) in words."""
 
 FLIP_BIAS = 0.02
 """Notebook 06's bar: a flip rate estimator's bias within this at every level."""
@@ -66,14 +66,14 @@ def _copesi(results: Path) -> dict[str, str]:
             )
         out[f"co_{domain}"] = "; ".join(cells)
     told = []
-    for baseline, reading in ESTIMATED_READINGS.items():
+    for baseline, conflict in ESTIMATED_NOISE_METHODS.items():
         cells = []
         for domain in sorted(estimated["domain"].unique()):
             unit, scale, digits = UNITS[domain]
             for level, d in _levels(estimated, domain, "param_error", baseline=baseline).items():
                 same = verdicts.no_difference(d)
                 cells.append(f"{domain} at {percent(level)} {interval(d, unit, digits + 1, scale)}: {same}")
-        told.append(f"a conflict read as {reading}: " + "; ".join(cells))
+        told.append(f"a conflict read as {CONFLICT_WORDS[conflict]}: " + "; ".join(cells))
     return {
         **out,
         "co_verdict": WORDS[verdicts.combine(held)],

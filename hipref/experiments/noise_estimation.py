@@ -56,6 +56,14 @@ PAPER_EXAMPLE_SPACING = 0.1
 METHODS: dict[str, str] = {conflict: f"algorithm5_{conflict}" for conflict in CONFLICTS}
 """The `method` of the rows of each reading of a conflict."""
 
+ESTIMATED_NOISE_METHODS: dict[str, str] = {
+    "co_pesi_estimated": "no_common_parameter",
+    "co_pesi_estimated_same_pair": "same_pair",
+}
+"""Figs. 8-9: the SI methods whose noise level Algorithm 5 estimates (CO-PESI,
+`hipref.experiments.si_methods`), each with its reading of a conflict; the paper does not say which one its
+figures used."""
+
 ESTIMATORS: dict[str, Callable[[PreferenceSet, CandidateSet], float]] = {
     "marginal_likelihood": lambda preferences, grid: likelihood_noise(preferences, grid.low, grid.high),
     "repeated_pair": lambda preferences, grid: repeated_pair_noise(preferences),
