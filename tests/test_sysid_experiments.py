@@ -13,7 +13,7 @@ import pytest
 from hipref import sweep
 from hipref.envs.task import Clip
 from hipref.envs.wiping import WipingTask
-from hipref.experiments import si_pretraining, si_run
+from hipref.experiments import si_methods, si_pretraining, si_run
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.protocol import Protocol
 from hipref.experiments.r2_noise import R2Config
@@ -213,3 +213,16 @@ def test_notebook_02s_held_out_grid_shares_no_environment_with_the_grid_and_is_r
     ):
         with pytest.raises(ValueError, match=name):
             R1Config(**{"heights": (0.6, 0.8), "seeds": 2, **bad})
+
+
+@pytest.mark.parametrize("method", sorted(si_methods.LEARNING_METHODS - si_methods.BAYES_METHODS))
+def test_the_coteaching_methods_are_exactly_those_whose_learner_is_co_pesi(method: str) -> None:
+    from types import SimpleNamespace
+
+    from hipref.learners.coteaching import CoPESILearner
+    from hipref.learners.sysid import DESK_HEIGHT, SIModel
+
+    cell = SimpleNamespace(domain="wiping", noise=0.2, fine_tuning=FineTuning())
+    learner = si_methods.LEARNERS[method](cell, SIModel(9, DESK_HEIGHT, hidden_sizes=(8,)), {}, 0)
+    # The co-teaching schedule of a run is kept for these methods alone (Protocol.run).
+    assert isinstance(learner, CoPESILearner) == (method in si_methods.COTEACHING_METHODS)

@@ -112,9 +112,9 @@ METHODS: tuple[str, ...] = tuple(LEARNERS)
 LEARNING_METHODS: frozenset[str] = frozenset(METHODS) - {"osi"}
 """Methods whose learner is told preferences (OSI keeps the pretrained SI)."""
 
-COTEACHING_METHODS: frozenset[str] = frozenset({"co_pesi", "co_pesi_estimated", "co_pesi_likelihood"})
+COTEACHING_METHODS: frozenset[str] = frozenset(m for m in METHODS if m.startswith("co_pesi"))
 """Methods filtering with co-teaching classifiers (Algorithm 1), which `FineTuning.coteaching_schedule`
-refreshes."""
+refreshes: every CO-PESI, named so here."""
 
 BAYES_METHODS: frozenset[str] = frozenset({"bayes", "bayes_si"})
 """Methods of the Bayesian learner, which may be told of the teacher (`SIRun.told`) and draws its queries
