@@ -19,6 +19,7 @@ from hipref.experiments.answers_to_success import (
     told_against_chosen,
 )
 from hipref.experiments.si_run import FineTuning, SIRun
+from hipref.learners.pesi import PESIConfig
 
 
 def test_the_shannon_floor_is_log2_k_over_the_channel_capacity() -> None:
@@ -183,7 +184,7 @@ def test_told_is_the_bayesian_learners_alone_and_belief_sampling_is_pesis() -> N
     with pytest.raises(ValueError, match="told"):
         SIRun("wiping", "bayes", 0.7, told="everything")
     with pytest.raises(ValueError, match="belief"):
-        SIRun("wiping", "bayes", 0.7, fine_tuning=FineTuning(candidate_sampling="belief"))
+        SIRun("wiping", "bayes", 0.7, fine_tuning=FineTuning(PESIConfig(candidate_sampling="belief")))
     assert SIRun("wiping", "bayes", 0.7, episodes=20, checkpoints=(0, 5, 20)).evaluated_at == (0, 5, 20)
     assert SIRun("wiping", "pesi", 0.7, episodes=66, eval_every=33).evaluated_at == (0, 33, 66)
 
@@ -197,7 +198,7 @@ def test_chosen_queries_and_blind_learners_run_only_where_the_config_says() -> N
         task_noise_levels=(0.2,),
     )
     task = config.task_cells()
-    rules = {(c.method, c.fine_tuning.candidate_sampling) for c in task}
+    rules = {(c.method, c.fine_tuning.pesi.candidate_sampling) for c in task}
     assert rules == {
         ("pesi", "uniform"),
         ("co_pesi", "uniform"),

@@ -1,6 +1,7 @@
 """CO-PESI (Algorithm 1): small-loss selection, cross-updates, the refresh schedule, one SI update per
 preference on b_0, and the filter's precision and recall against the recorded flips."""
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -8,14 +9,10 @@ import numpy as np
 import pytest
 import torch
 
-from hipref.learners.coteaching import (
-    CoPESIConfig,
-    CoPESILearner,
-    EstimatedNoiseCoPESILearner,
-    SIUpdateRecord,
-    reset_every_step_schedule,
-)
+from hipref.learners.coteaching import CoTeaching, CoTeachingFilter, reset_every_step_schedule
 from hipref.learners.coteaching_pair import CoTeachingPair, classifier_inputs, coteach_select
+from hipref.learners.filters import SIUpdateRecord
+from hipref.learners.noise_rate import Algorithm5, FlipRate, Told
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
@@ -102,7 +99,7 @@ def test_the_default_schedules_filter_forgets_flipped_labels_well_above_chance()
     for seed in range(2):
         rng = np.random.default_rng(seed)
         model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
-        learner = CoPESILearner(model, 0.2, CoPESIConfig(history=1), seed=seed)
+        learner = _co_pesi(model, Told(0.2), seed)
         flipped = []
         for _ in range(99):
             a, b = (float(c) for c in rng.choice(DESK_HEIGHT.values, size=2, replace=False))
@@ -113,9 +110,26 @@ def test_the_default_schedules_filter_forgets_flipped_labels_well_above_chance()
     assert np.mean(precisions) > 0.35
 
 
-def _learner(noise_level: float = 0.2, seed: int = 0, **config: object) -> CoPESILearner:
+COTEACHING_FIELDS = {field.name for field in dataclasses.fields(CoTeaching)}
+
+
+def _co_pesi(
+    model: SIModel, flip_rate: FlipRate, seed: int, schedule: type | Callable = CoTeaching, **config: object
+) -> PESILearner:
+    """CO-PESI: the preference learner with co-teaching, `config` split between PESI and the schedule."""
+    coteaching = {k: v for k, v in config.items() if k in COTEACHING_FIELDS}
+    pesi = {k: v for k, v in config.items() if k not in COTEACHING_FIELDS}
+    return PESILearner(model, PESIConfig(**{"history": 1, **pesi}), seed, schedule(**coteaching), flip_rate)
+
+
+def _learner(noise_level: float = 0.2, seed: int = 0, **config: object) -> PESILearner:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(32, 16), seed=seed)
-    return CoPESILearner(model, noise_level, CoPESIConfig(**{"history": 1, **config}), seed=seed)
+    return _co_pesi(model, Told(noise_level), seed, **config)
+
+
+def _filter(learner: PESILearner) -> CoTeachingFilter:
+    assert isinstance(learner.filter, CoTeachingFilter)
+    return learner.filter
 
 
 def _teach(learner: PESILearner, n: int, noise: float, seed: int = 1) -> None:
@@ -126,35 +140,36 @@ def _teach(learner: PESILearner, n: int, noise: float, seed: int = 1) -> None:
 
 
 def test_forget_number_ramps_to_the_noise_level_and_keeps_at_least_one_sample() -> None:
-    learner = _learner(noise_level=0.2, ramp_steps=10)
-    assert learner.remember_rate == pytest.approx(0.8)
-    assert [learner.forget_number(step, 16) for step in (0, 5, 10, 50)] == [0, 2, 3, 3]
-    assert learner.forget_number(50, 32) == 6
-    assert _learner(noise_level=1.0).forget_number(50, 16) == 15
-    assert _learner(noise_level=0.2, ramp_steps=0).forget_number(0, 16) == 3
+    coteaching = _filter(_learner(ramp_steps=10))
+    assert [coteaching.forget_number(step, 16, 0.2) for step in (0, 5, 10, 50)] == [0, 2, 3, 3]
+    assert coteaching.forget_rate(50, 0.2) == pytest.approx(0.2)
+    assert coteaching.forget_number(50, 32, 0.2) == 6
+    assert coteaching.forget_number(50, 16, 1.0) == 15
+    assert _filter(_learner(ramp_steps=0)).forget_number(0, 16, 0.2) == 3
 
 
 def test_before_the_start_size_si_learns_unfiltered_and_the_classifiers_wait() -> None:
     learner = _learner(start_size=8, batch_size=8)
-    before = [p.clone() for p in learner.pair.models[0].parameters()]
+    coteaching = _filter(learner)
+    before = [p.clone() for p in coteaching.pair.models[0].parameters()]
     _teach(learner, 8, noise=0.0)
-    assert learner.coteaching_steps == learner.classifier_steps == 0
-    assert all(torch.equal(a, b) for a, b in zip(before, learner.pair.models[0].parameters(), strict=True))
+    assert coteaching.coteaching_steps == coteaching.classifier_steps == 0
+    assert all(torch.equal(a, b) for a, b in zip(before, coteaching.pair.models[0].parameters(), strict=True))
     # One SI update per preference, each on PESI's batch min(batch_size, |D|) with nothing forgotten.
-    assert [len(r.batch) for r in learner.si_updates] == list(range(1, 9))
-    assert all(len(r.forgotten) == 0 for r in learner.si_updates)
+    assert [len(r.batch) for r in coteaching.si_updates] == list(range(1, 9))
+    assert all(len(r.forgotten) == 0 for r in coteaching.si_updates)
     _teach(learner, 1, noise=0.0)
-    assert learner.coteaching_steps == 1 and learner.classifier_steps == learner.config.rounds
+    assert coteaching.coteaching_steps == 1 and coteaching.classifier_steps == coteaching.setting.rounds
 
 
 def test_the_literal_reading_learns_nothing_before_the_start_size() -> None:
     learner = _learner(start_size=8, batch_size=8, update_before_start=False)
     before = [p.clone() for p in learner.model.parameters()]
     _teach(learner, 8, noise=0.0)
-    assert learner.si_updates == []
+    assert _filter(learner).si_updates == []
     assert all(torch.equal(a, b) for a, b in zip(before, learner.model.parameters(), strict=True))
     _teach(learner, 1, noise=0.0)
-    assert len(learner.si_updates) == 1
+    assert len(_filter(learner).si_updates) == 1
     assert not all(torch.equal(a, b) for a, b in zip(before, learner.model.parameters(), strict=True))
 
 
@@ -162,38 +177,41 @@ def test_the_classifiers_refresh_when_the_buffer_reaches_a_multiple_of_f_refresh
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     learner = _learner(start_size=4, batch_size=8, refresh_frequency=3, rounds=2)
+    coteaching = _filter(learner)
     sizes_at_refresh: list[int] = []
-    reinitialise = learner.pair.reinitialise
+    reinitialise = coteaching.pair.reinitialise
 
     def spy(seed: int) -> None:
         sizes_at_refresh.append(len(learner))
         reinitialise(seed)
 
-    monkeypatch.setattr(learner.pair, "reinitialise", spy)
+    monkeypatch.setattr(coteaching.pair, "reinitialise", spy)
     _teach(learner, 14, noise=0.25)
     # Co-teaching runs from |D| = 5; the classifiers are fresh then, and are re-initialised before the
     # co-teaching of |D| = 6, 9 and 12, not at every 3 classifier steps (there are 2 per preference).
-    assert sizes_at_refresh == learner.refreshed_at == [6, 9, 12]
-    assert learner.coteaching_steps == 10 and learner.classifier_steps == 20
+    assert sizes_at_refresh == coteaching.refreshed_at == [6, 9, 12]
+    assert coteaching.coteaching_steps == 10 and coteaching.classifier_steps == 20
 
 
 def test_the_reset_every_step_schedule_refreshes_every_f_refresh_classifier_steps(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
-    config = reset_every_step_schedule(history=1, start_size=4, batch_size=8, refresh_frequency=3)
-    learner = CoPESILearner(model, 0.25, config, seed=0)
+    learner = _co_pesi(
+        model, Told(0.25), 0, reset_every_step_schedule, start_size=4, batch_size=8, refresh_frequency=3
+    )
+    coteaching = _filter(learner)
     refreshed_after_steps: list[int] = []
-    reinitialise = learner.pair.reinitialise
+    reinitialise = coteaching.pair.reinitialise
     monkeypatch.setattr(
-        learner.pair,
+        coteaching.pair,
         "reinitialise",
-        lambda seed: refreshed_after_steps.append(learner.classifier_steps) or reinitialise(seed),
+        lambda seed: refreshed_after_steps.append(coteaching.classifier_steps) or reinitialise(seed),
     )
     _teach(learner, 14, noise=0.25)
-    assert learner.config.rounds == 1 and learner.classifier_steps == 10
+    assert coteaching.setting.rounds == 1 and coteaching.classifier_steps == 10
     assert refreshed_after_steps == [3, 6, 9]
-    assert len(learner.si_updates) == 10  # no SI update while |D| <= s
+    assert len(coteaching.si_updates) == 10  # no SI update while |D| <= s
 
 
 def test_si_is_updated_once_per_preference_on_the_last_rounds_b0(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -201,7 +219,8 @@ def test_si_is_updated_once_per_preference_on_the_last_rounds_b0(monkeypatch: py
     sampled: list[np.ndarray] = []
     selected: list[np.ndarray] = []
     si_batches: list[np.ndarray] = []
-    sample_batch, step, update_si = learner._sample_batch, learner.pair.step, learner._update_si
+    coteaching = _filter(learner)
+    sample_batch, step, update_si = learner.sample_batch, coteaching.pair.step, learner.update_si
 
     def spy_sample() -> np.ndarray:
         sampled.append(sample_batch())
@@ -214,18 +233,20 @@ def test_si_is_updated_once_per_preference_on_the_last_rounds_b0(monkeypatch: py
         selected.append(sampled[-1][b0])
         return b0, b1
 
-    monkeypatch.setattr(learner, "_sample_batch", spy_sample)
-    monkeypatch.setattr(learner.pair, "step", spy_step)
-    monkeypatch.setattr(learner, "_update_si", lambda batch: si_batches.append(batch) or update_si(batch))
+    monkeypatch.setattr(learner, "sample_batch", spy_sample)
+    monkeypatch.setattr(coteaching.pair, "step", spy_step)
+    monkeypatch.setattr(
+        learner, "update_si", lambda batch, rate: si_batches.append(batch) or update_si(batch, rate)
+    )
     _teach(learner, 10, noise=0.25)
     assert len(si_batches) == 10 and len(selected) == 3 * 6
     # The 6 co-teaching preferences: SI sees the b_0 of each one's third classifier step, nothing else.
     for k, batch in enumerate(si_batches[4:]):
         np.testing.assert_array_equal(batch, selected[3 * k + 2])
-        record = learner.si_updates[4 + k]
+        record = coteaching.si_updates[4 + k]
         assert set(record.forgotten) == set(record.batch) - set(batch)
         assert len(record.forgotten) == round(0.25 * len(record.batch))
-    np.testing.assert_array_equal(si_batches[-1], learner.last_selection)
+    np.testing.assert_array_equal(si_batches[-1], coteaching.last_selection)
 
 
 def test_co_pesi_makes_as_many_si_updates_as_pesi_for_the_same_preferences(
@@ -233,16 +254,18 @@ def test_co_pesi_makes_as_many_si_updates_as_pesi_for_the_same_preferences(
 ) -> None:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
     pesi = PESILearner(model, PESIConfig(history=1), seed=0)
-    co_pesi = CoPESILearner(model, 0.2, CoPESIConfig(history=1, rounds=2), seed=0)
+    co_pesi = _co_pesi(model, Told(0.2), 0, rounds=2)
     counts = {"pesi": 0, "co_pesi": 0}
     for name, learner in (("pesi", pesi), ("co_pesi", co_pesi)):
-        update_si = learner._update_si
+        update_si = learner.update_si
 
-        def counted(batch: np.ndarray, name: str = name, update_si: Callable = update_si) -> float:
+        def counted(
+            batch: np.ndarray, rate: float, name: str = name, update_si: Callable = update_si
+        ) -> float:
             counts[name] += 1
-            return update_si(batch)
+            return update_si(batch, rate)
 
-        monkeypatch.setattr(learner, "_update_si", counted)
+        monkeypatch.setattr(learner, "update_si", counted)
     teacher = ScriptedPreferenceTeacher(TRUE_HEIGHT, 0.2, np.random.default_rng(0))
     rng = np.random.default_rng(1)
     for _ in range(40):
@@ -252,28 +275,30 @@ def test_co_pesi_makes_as_many_si_updates_as_pesi_for_the_same_preferences(
         pesi.tell(query, label)
         co_pesi.tell(query, label)
     assert counts == {"pesi": 40, "co_pesi": 40}
-    assert len(co_pesi.si_updates) == 40 and co_pesi.coteaching_steps == 40 - co_pesi.config.start_size
+    coteaching = _filter(co_pesi)
+    assert len(coteaching.si_updates) == 40 and coteaching.coteaching_steps == 40 - co_pesi.config.start_size
 
 
 def test_precision_and_recall_count_every_update_entry_occurrence() -> None:
     learner = _learner()
     _teach(learner, 5, noise=0.0)
+    coteaching = _filter(learner)
     flipped = [False, True, False, True, False]
     # A perfect filter: everything forgotten was flipped, every flipped entry offered was forgotten.
-    learner.si_updates = [
+    coteaching.si_updates = [
         SIUpdateRecord(np.array([0, 1, 2]), np.array([1])),
         SIUpdateRecord(np.array([1, 3, 4]), np.array([1, 3])),
     ]
     assert learner.filter_precision_recall(flipped) == (1.0, 1.0)
     # Entry 1 is offered three times and forgotten twice; entry 2 (clean) forgotten once.
-    learner.si_updates.append(SIUpdateRecord(np.array([1, 2, 4]), np.array([2])))
+    coteaching.si_updates.append(SIUpdateRecord(np.array([1, 2, 4]), np.array([2])))
     precision, recall = learner.filter_precision_recall(np.array(flipped))
     assert precision == pytest.approx(3 / 4) and recall == pytest.approx(3 / 4)
     # Nothing forgotten: precision undefined, recall 0; no flipped entry offered: recall undefined.
-    learner.si_updates = [SIUpdateRecord(np.array([0, 1]), np.array([], dtype=np.int64))]
+    coteaching.si_updates = [SIUpdateRecord(np.array([0, 1]), np.array([], dtype=np.int64))]
     precision, recall = learner.filter_precision_recall(flipped)
     assert math.isnan(precision) and recall == 0.0
-    learner.si_updates = [SIUpdateRecord(np.array([0, 2]), np.array([2]))]
+    coteaching.si_updates = [SIUpdateRecord(np.array([0, 2]), np.array([2]))]
     precision, recall = learner.filter_precision_recall(flipped)
     assert precision == 0.0 and math.isnan(recall)
 
@@ -302,11 +327,12 @@ def test_precision_and_recall_refuse_flags_that_do_not_match_the_buffer() -> Non
 
 
 def test_the_estimated_noise_level_sets_each_preferences_forget_number() -> None:
-    config = CoPESIConfig(batch_size=8, start_size=8, refresh_frequency=8, history=1, rounds=2, ramp_steps=0)
-    learner = EstimatedNoiseCoPESILearner(SIModel(4, DESK_HEIGHT, hidden_sizes=(8,), seed=0), config, seed=1)
+    model = SIModel(4, DESK_HEIGHT, hidden_sizes=(8,), seed=0)
+    config = dict(batch_size=8, start_size=8, refresh_frequency=8, rounds=2, ramp_steps=0)
+    learner = _co_pesi(model, Algorithm5(), 1, **config)
     _teach(learner, 24, noise=0.3)
-    coteaching_updates = learner.si_updates[config.start_size :]
-    assert len(learner.noise_history) == len(coteaching_updates) == 24 - config.start_size
+    coteaching_updates = _filter(learner).si_updates[8:]
+    assert len(learner.noise_history) == len(coteaching_updates) == 24 - 8
     for level, record in zip(learner.noise_history, coteaching_updates, strict=True):
         assert len(record.forgotten) == min(
             math.floor(level * len(record.batch) + 0.5), len(record.batch) - 1
@@ -330,17 +356,18 @@ def test_noise_free_preferences_reduce_the_estimate_error_and_runs_are_reproduci
 
 
 def test_invalid_settings_are_refused() -> None:
+    model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(8,), seed=0)
     with pytest.raises(ValueError, match="n_candidates must be 2"):
-        CoPESIConfig(n_candidates=3)
+        PESILearner(model, PESIConfig(n_candidates=3, history=1), 0, CoTeaching())
     with pytest.raises(ValueError, match=r"refresh_frequency .*0"):
-        CoPESIConfig(refresh_frequency=0)
+        CoTeaching(refresh_frequency=0)
     with pytest.raises(ValueError, match=r"refresh_unit .*'episodes'"):
-        CoPESIConfig(refresh_unit="episodes")
+        CoTeaching(refresh_unit="episodes")
     with pytest.raises(ValueError, match=r"rounds .*0"):
-        CoPESIConfig(rounds=0)
+        CoTeaching(rounds=0)
     with pytest.raises(ValueError, match=r"ramp_origin .*'never'"):
-        CoPESIConfig(ramp_origin="never")
+        CoTeaching(ramp_origin="never")
     with pytest.raises(ValueError, match=r"update_before_start .*1"):
-        CoPESIConfig(update_before_start=1)  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match=r"noise_level .*1.5"):
+        CoTeaching(update_before_start=1)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"value .*1.5"):
         _learner(noise_level=1.5)

@@ -165,16 +165,18 @@ def test_claim_statistics_take_one_reading_at_a_time() -> None:
 
 
 def test_co_pesi_estimated_sets_its_noise_level_from_algorithm_5_on_its_buffer() -> None:
-    from hipref.learners.coteaching import CoPESIConfig, EstimatedNoiseCoPESILearner
+    from hipref.learners.coteaching import CoTeaching
     from hipref.learners.noise_estimation import CONFLICTS, estimate_noise
+    from hipref.learners.noise_rate import Algorithm5
+    from hipref.learners.pesi import PESIConfig, PESILearner
     from hipref.learners.sysid import DESK_HEIGHT, SIModel
     from hipref.teachers.preference import ScriptedPreferenceTeacher
 
-    config = CoPESIConfig(batch_size=8, start_size=8, refresh_frequency=8, history=1)
+    config = PESIConfig(batch_size=8, start_size=8, history=1)
     histories = {}
     for conflict in CONFLICTS:
         model = SIModel(9, DESK_HEIGHT, hidden_sizes=(8,), seed=0)
-        learner = EstimatedNoiseCoPESILearner(model, config, seed=1, conflict=conflict)
+        learner = PESILearner(model, config, 1, CoTeaching(refresh_frequency=8), Algorithm5(conflict))
         teacher = ScriptedPreferenceTeacher(0.7, 0.3, np.random.default_rng(0))
         features = np.random.default_rng(2).normal(size=(20, 9))
         for x in features:
@@ -183,9 +185,9 @@ def test_co_pesi_estimated_sets_its_noise_level_from_algorithm_5_on_its_buffer()
         # One estimate per co-teaching step: every preference after the first start_size.
         assert len(learner.noise_history) == len(features) - config.start_size
         estimate = estimate_noise(learner.buffer_preferences(), conflict)
-        assert learner.noise_level == learner.noise_history[-1] == estimate
+        assert learner.noise_history[-1] == estimate
         histories[conflict] = learner.noise_history
     # The readings count different conflicts on the same answers, so the forget numbers differ.
     assert histories["same_pair"] != histories["no_common_parameter"]
     with pytest.raises(ValueError, match="conflict"):
-        EstimatedNoiseCoPESILearner(SIModel(9, DESK_HEIGHT, hidden_sizes=(8,)), config, conflict="pair")
+        Algorithm5(conflict="pair")

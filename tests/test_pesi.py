@@ -7,14 +7,8 @@ import pytest
 import torch
 from torch import nn
 
-from hipref.learners.pesi import (
-    PESIConfig,
-    PESILearner,
-    log_probs,
-    pesi_loss,
-    pesi_loss_n,
-    standard_ce_loss,
-)
+from hipref.learners.losses import log_probs, pesi_loss, pesi_loss_n, standard_ce_loss
+from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, PretrainConfig, SIModel, pretrain
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
 from tests._clips import shown

@@ -16,7 +16,7 @@ from hipref.envs.pushing_config import PushingConfig
 from hipref.experiments.controllers import AblationCell, ControllersConfig, CurveCell
 from hipref.experiments.r2_noise import R2Config
 from hipref.experiments.r3_copesi import R3Config
-from hipref.learners.coteaching import CoPESILearner
+from hipref.learners.noise_rate import Told
 from hipref.sweep import run_sweep
 from hipref.teachers.preference import ScriptedPreferenceTeacher, preference_label_vector
 from tests._sweep_cells import ToyCell, executions, toy_cell
@@ -26,7 +26,7 @@ CASES: dict[str, tuple[Callable[[], object], str]] = {
     "string noise level": (lambda: R2Config(noise_levels=("0.3",)), r"noise_levels .* got '0.3'"),
     "bool noise level": (lambda: R2Config(noise_levels=(True,)), r"noise_levels .* got True"),
     "string desk height": (lambda: ControllersConfig(desk_height="0.81"), r"desk_height .* got '0.81'"),
-    "string co-pesi noise": (lambda: CoPESILearner(None, "0.2"), r"noise_level .* got '0.2'"),  # type: ignore[arg-type]
+    "string co-pesi noise": (lambda: Told("0.2"), r"value .* got '0.2'"),  # type: ignore[arg-type]
     "string teacher noise": (
         lambda: ScriptedPreferenceTeacher(0.7, "0.1", np.random.default_rng(0)),  # type: ignore[arg-type]
         r"noise .* got '0.1'",

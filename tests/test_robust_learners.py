@@ -1,25 +1,25 @@
-"""The robust learners (`hipref.learners.robust`): each one's defining property."""
+"""The robust learners (their losses in `hipref.learners.losses`, their filters in `hipref.learners.filters`):
+each one's defining property."""
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
 import torch
 
-from hipref.learners.coteaching import CoPESIConfig, SIUpdateRecord
-from hipref.learners.noise_rate import likelihood_noise
-from hipref.learners.pesi import pesi_loss
-from hipref.learners.robust import (
-    LabelSmoothingPESILearner,
-    LikelihoodNoiseCoPESILearner,
-    RobustPESIConfig,
-    SmallLossPESILearner,
-    TrustFlipPESILearner,
-    UnbiasedPESILearner,
-    conservative_pesi_loss,
-    preference_nll,
-    unbiased_pesi_loss,
+from hipref.learners.coteaching import CoTeaching
+from hipref.learners.filters import (
+    FilterSetting,
+    SIUpdateRecord,
+    SmallLoss,
+    TrustFlip,
+    TrustFlipFilter,
+    UpdateLog,
 )
+from hipref.learners.losses import conservative_pesi_loss, pesi_loss, preference_nll, unbiased_pesi_loss
+from hipref.learners.noise_rate import FlipRate, Likelihood, likelihood_noise
+from hipref.learners.pesi import PESI_FILTER, TRUSTING, PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
 from tests._clips import shown
@@ -73,9 +73,26 @@ def test_the_preference_loss_is_minus_log_pr_of_the_preferred_candidate() -> Non
     )
 
 
-def _learner(kind: type, seed: int = 0, **config: object):
+ESTIMATED = Likelihood(0.4)
+"""The flip rate of the unbiased loss and the small-loss filter (as `hipref.experiments.si_methods`)."""
+
+
+def _learner(
+    filter: FilterSetting = PESI_FILTER, flip_rate: FlipRate = TRUSTING, seed: int = 0, **config: object
+) -> PESILearner:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(32, 16), seed=seed)
-    return kind(model, RobustPESIConfig(**{"history": 1, "start_size": 8, "batch_size": 16, **config}), seed)
+    pesi = PESIConfig(**{"history": 1, "start_size": 8, "batch_size": 16, **config})  # type: ignore[arg-type]
+    return PESILearner(model, pesi, seed, filter, flip_rate)
+
+
+def _log(learner: PESILearner) -> UpdateLog:
+    assert isinstance(learner.filter, UpdateLog)
+    return learner.filter
+
+
+def _trust_flip(learner: PESILearner) -> TrustFlipFilter:
+    assert isinstance(learner.filter, TrustFlipFilter)
+    return learner.filter
 
 
 def _teach(learner: object, truth: float, noise: float, n: int, seed: int = 2) -> ScriptedPreferenceTeacher:
@@ -87,29 +104,30 @@ def _teach(learner: object, truth: float, noise: float, n: int, seed: int = 2) -
 
 
 def test_a_perfect_filters_precision_and_recall_are_1_on_a_constructed_batch() -> None:
-    learner = _learner(SmallLossPESILearner)
+    learner = _learner(SmallLoss(), ESTIMATED)
     _teach(learner, 0.7, 0.0, 6)
     flipped = np.array([False, True, False, False, True, False])
-    learner.si_updates = [SIUpdateRecord(np.arange(6), np.flatnonzero(flipped))]
+    _log(learner).si_updates = [SIUpdateRecord(np.arange(6), np.flatnonzero(flipped))]
     assert learner.filter_precision_recall(flipped) == (1.0, 1.0)
-    learner.si_updates = [SIUpdateRecord(np.arange(6), np.array([0, 1]))]  # one right, one missed
+    _log(learner).si_updates = [SIUpdateRecord(np.arange(6), np.array([0, 1]))]  # one right, one missed
     assert learner.filter_precision_recall(flipped) == (0.5, 0.5)
 
 
 def test_the_small_loss_filter_forgets_the_estimated_share_with_the_largest_loss_under_si() -> None:
-    learner = _learner(SmallLossPESILearner, learning_rate=0.1)
+    learner = _learner(SmallLoss(), ESTIMATED, learning_rate=0.1)
     _teach(learner, 0.8, 0.2, 60)
-    record, rate = learner.si_updates[-1], learner.noise_history[-1]
+    record, rate = _log(learner).si_updates[-1], learner.noise_history[-1]
     assert len(record.forgotten) == math.floor(rate * len(record.batch) + 0.5)
     assert rate == pytest.approx(min(0.4, likelihood_noise(learner.buffer_preferences(), 0.5, 0.9)))
     with torch.no_grad():
-        losses = preference_nll(*learner._pair_tensors(record.batch))
+        queried, labels = learner.queried(record.batch)
+        losses = preference_nll(queried, labels[:, 0])
     forgotten = np.isin(record.batch, record.forgotten)
     assert losses[torch.as_tensor(forgotten)].min() >= losses[torch.as_tensor(~forgotten)].max()
 
 
 def test_small_loss_filtering_finds_flips_better_than_chance_once_si_has_learnt() -> None:
-    learner = _learner(SmallLossPESILearner, learning_rate=0.1)
+    learner = _learner(SmallLoss(), ESTIMATED, learning_rate=0.1)
     teacher = _teach(learner, 0.8, 0.2, 120, seed=5)
     precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
     assert precision > 0.3  # chance is the flip rate, 0.2
@@ -117,28 +135,29 @@ def test_small_loss_filtering_finds_flips_better_than_chance_once_si_has_learnt(
 
 
 def test_rime_trusts_small_losses_flips_very_large_ones_and_leaves_out_the_rest() -> None:
-    learner = _learner(TrustFlipPESILearner, trust_spread_start=0.0, trust_spread_end=0.0)
-    assert learner.trust_threshold(torch.tensor([0.1, 5.0])) == pytest.approx(math.log(2))
-    learner = _learner(
-        TrustFlipPESILearner, trust_spread_start=2.0, trust_spread_end=1.0, trust_spread_decay=0.5
+    trust_flip = _trust_flip(_learner(TrustFlip(trust_spread_start=0.0, trust_spread_end=0.0)))
+    assert trust_flip.trust_threshold(torch.tensor([0.1, 5.0])) == pytest.approx(math.log(2))
+    trust_flip = _trust_flip(
+        _learner(TrustFlip(trust_spread_start=2.0, trust_spread_end=1.0, trust_spread_decay=0.5))
     )
     losses = torch.tensor([0.0, 1.0])
     spread = float(losses.std())
-    assert learner.trust_threshold(losses) == pytest.approx(math.log(2) + 2.0 * spread)
-    learner.filtered_updates = 10  # decayed to its floor
-    assert learner.trust_threshold(losses) == pytest.approx(math.log(2) + 1.0 * spread)
+    assert trust_flip.trust_threshold(losses) == pytest.approx(math.log(2) + 2.0 * spread)
+    trust_flip.filtered_updates = 10  # decayed to its floor
+    assert trust_flip.trust_threshold(losses) == pytest.approx(math.log(2) + 1.0 * spread)
     # In a run: every left-out or flipped entry of an update is recorded as forgotten.
-    learner = _learner(TrustFlipPESILearner, learning_rate=0.1)
+    learner = _learner(TrustFlip(), learning_rate=0.1)
     _teach(learner, 0.8, 0.3, 60)
-    assert learner.filtered_updates == 60 - 8
-    record = learner.si_updates[-1]
+    assert _trust_flip(learner).filtered_updates == 60 - 8
+    record = _trust_flip(learner).si_updates[-1]
     with torch.no_grad():
-        losses = preference_nll(*learner._pair_tensors(record.batch)).numpy()
+        queried, labels = learner.queried(record.batch)
+        losses = preference_nll(queried, labels[:, 0]).numpy()
     assert np.all(losses[np.isin(record.batch, record.forgotten)] >= math.log(2))
 
 
 def test_the_unbiased_learner_estimates_the_rate_by_marginal_likelihood_before_each_update() -> None:
-    learner = _learner(UnbiasedPESILearner)
+    learner = _learner(flip_rate=ESTIMATED, loss="unbiased")
     _teach(learner, 0.6, 0.2, 30)
     assert len(learner.noise_history) == 30 - 8
     assert learner.noise_history[-1] == pytest.approx(
@@ -147,7 +166,7 @@ def test_the_unbiased_learner_estimates_the_rate_by_marginal_likelihood_before_e
 
 
 def test_label_smoothing_learns_from_clean_preferences() -> None:
-    learner = _learner(LabelSmoothingPESILearner, learning_rate=0.1)
+    learner = _learner(loss="smoothed", learning_rate=0.1)
     initial = abs(learner.estimate(FEATURES) - 0.843)
     _teach(learner, 0.843, 0.0, 150)
     assert abs(learner.estimate(FEATURES) - 0.843) < 0.5 * initial
@@ -155,32 +174,33 @@ def test_label_smoothing_learns_from_clean_preferences() -> None:
 
 def test_co_pesi_likelihood_forgets_the_marginal_likelihood_rate_of_its_buffer() -> None:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
-    config = CoPESIConfig(history=1, start_size=8, rounds=2)
-    learner = LikelihoodNoiseCoPESILearner(model, config, seed=0)
+    learner = PESILearner(model, PESIConfig(history=1, start_size=8), 0, CoTeaching(rounds=2), Likelihood())
     _teach(learner, 0.7, 0.25, 30)
     assert len(learner.noise_history) == 30 - 8
-    assert learner.noise_level == learner.noise_history[-1]
-    assert learner.noise_level == pytest.approx(likelihood_noise(learner.buffer_preferences(), 0.5, 0.9))
+    assert learner.noise_history[-1] == pytest.approx(
+        likelihood_noise(learner.buffer_preferences(), 0.5, 0.9)
+    )
 
 
 @pytest.mark.parametrize(
-    ("kwargs", "message"),
+    ("build", "message"),
     [
-        ({"n_candidates": 3}, "n_candidates"),
-        ({"smoothing": 0.5}, "smoothing"),
-        ({"max_rate": 0.5}, "max_rate"),
-        ({"flip_probability": 0.9}, "flip_probability"),
-        ({"trust_spread_end": 5.0}, "trust_spread_end"),
+        (lambda: _learner(SmallLoss(), n_candidates=3), "n_candidates"),
+        (lambda: _learner(loss="unbiased", n_candidates=3), "n_candidates"),
+        (lambda: PESIConfig(smoothing=0.5), "smoothing"),
+        (lambda: Likelihood(0.6), "cap"),
+        (lambda: TrustFlip(flip_probability=0.9), "flip_probability"),
+        (lambda: TrustFlip(trust_spread_end=5.0), "trust_spread_end"),
     ],
 )
-def test_invalid_robust_configs_are_refused(kwargs: dict[str, object], message: str) -> None:
+def test_invalid_robust_settings_are_refused(build: Callable[[], object], message: str) -> None:
     with pytest.raises(ValueError, match=message):
-        RobustPESIConfig(**kwargs)
+        build()
 
 
 def test_robust_learners_store_nothing_for_a_skip() -> None:
     from hipref.teachers.models import SKIP
 
-    learner = _learner(SmallLossPESILearner)
+    learner = _learner(SmallLoss(), ESTIMATED)
     learner.tell(PreferenceQuery(learner.ask(shown(FEATURES)).candidates, FEATURES), SKIP)
-    assert len(learner) == 0 and learner.si_updates == []
+    assert len(learner) == 0 and _log(learner).si_updates == []

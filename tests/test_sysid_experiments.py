@@ -15,7 +15,7 @@ from hipref.envs.task import Clip
 from hipref.envs.wiping import WipingTask
 from hipref.experiments import si_methods, si_pretraining, si_run
 from hipref.experiments.n_candidates import NCandidatesConfig
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.r2_noise import R2Config
 from hipref.experiments.si_evaluation import EvaluationSpec, evaluation_episodes
 from hipref.experiments.si_pretraining import (
@@ -26,6 +26,7 @@ from hipref.experiments.si_pretraining import (
     pretrained_model,
 )
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
+from hipref.learners.pesi import PESIConfig
 
 TINY = PretrainData(n_trajectories=24, trajectory_steps=40, pretrain_steps=400)
 
@@ -115,7 +116,8 @@ def test_every_method_meets_the_same_evaluation_episodes():
         lambda: R2Config(heights=(0.45,)),
         lambda: R2Config(masses=()),
         lambda: PretrainData(loss="mse"),
-        lambda: FineTuning(candidate_sampling="nearest"),
+        lambda: FineTuning(PESIConfig(candidate_sampling="nearest")),
+        lambda: FineTuning(PESIConfig(batch_size=4)),  # the run's: the domain's batch size
         lambda: FineTuning(coteaching_schedule="never"),
         lambda: R2Config(noise_levels=(0.1, -0.2)),
         lambda: R2Config(domains=("juggling",)),
@@ -132,16 +134,16 @@ def test_bad_configs_are_refused_before_any_compute(make, monkeypatch):
 
 
 def test_the_protocol_crosses_a_fixed_grid_of_truths_with_seeds_and_osi_ignores_the_fine_tuning():
-    protocol = Protocol(heights=(0.6, 0.8), masses=(10.0,), seeds=2)
+    protocol = SIStudy(heights=(0.6, 0.8), masses=(10.0,), seeds=2)
     assert protocol.environments("wiping") == [(0.6, 0), (0.6, 1), (0.8, 0), (0.8, 1)]
     assert protocol.environments("pushing") == [(10.0, 0), (10.0, 1)]
-    tuned = FineTuning(candidate_sampling="belief", coteaching_schedule="reset_every_step")
+    tuned = FineTuning(PESIConfig(candidate_sampling="belief"), coteaching_schedule="reset_every_step")
     # One OSI run per environment serves every study and variant; PESI ignores the classifier schedule.
     osi = protocol.run_cell("wiping", "osi", 0.6, 0)
     assert protocol.run_cell("wiping", "osi", 0.6, 0, tuned, noise=0.3) == osi
     pesi = protocol.run_cell("wiping", "pesi", 0.6, 0, tuned)
     assert pesi.fine_tuning.coteaching_schedule == FineTuning().coteaching_schedule
-    assert pesi.fine_tuning.candidate_sampling == "belief"
+    assert pesi.fine_tuning.pesi.candidate_sampling == "belief"
 
 
 def test_two_truths_with_one_seed_draw_different_evaluation_episodes():
@@ -196,9 +198,9 @@ def test_pretraining_builds_each_domains_model_once_in_the_cache_the_runs_read(t
 
 
 def test_notebook_02s_held_out_grid_shares_no_environment_with_the_grid_and_is_read_at_the_end() -> None:
-    from hipref.experiments.r1_pesi import R1Config, cells, held_out_cells
+    from hipref.experiments.r1_pesi import R1PESIConfig, cells, held_out_cells
 
-    config = R1Config(heights=(0.6, 0.8), masses=(11.0,), seeds=2, held_out_seeds=(100, 101))
+    config = R1PESIConfig(heights=(0.6, 0.8), masses=(11.0,), seeds=2, held_out_seeds=(100, 101))
     grid = {(c.domain, c.ground_truth, c.seed) for c in cells(config)}
     held_out = held_out_cells(config)
     assert {c.method for c in held_out} == {"osi", "pesi"}
@@ -212,17 +214,20 @@ def test_notebook_02s_held_out_grid_shares_no_environment_with_the_grid_and_is_r
         ({"held_out_seeds": ()}, "held_out_seeds"),
     ):
         with pytest.raises(ValueError, match=name):
-            R1Config(**{"heights": (0.6, 0.8), "seeds": 2, **bad})
+            R1PESIConfig(**{"heights": (0.6, 0.8), "seeds": 2, **bad})
 
 
 @pytest.mark.parametrize("method", sorted(si_methods.LEARNING_METHODS - si_methods.BAYES_METHODS))
 def test_the_coteaching_methods_are_exactly_those_whose_learner_is_co_pesi(method: str) -> None:
     from types import SimpleNamespace
 
-    from hipref.learners.coteaching import CoPESILearner
+    from hipref.learners.coteaching import CoTeachingFilter
+    from hipref.learners.pesi import PESILearner
     from hipref.learners.sysid import DESK_HEIGHT, SIModel
 
     cell = SimpleNamespace(domain="wiping", noise=0.2, fine_tuning=FineTuning())
-    learner = si_methods.LEARNERS[method](cell, SIModel(9, DESK_HEIGHT, hidden_sizes=(8,)), {}, 0)
-    # The co-teaching schedule of a run is kept for these methods alone (Protocol.run).
-    assert isinstance(learner, CoPESILearner) == (method in si_methods.COTEACHING_METHODS)
+    model = SIModel(9, DESK_HEIGHT, hidden_sizes=(8,))
+    learner = si_methods.LEARNERS[method](cell, model, PESIConfig(history=1), 0)  # type: ignore[arg-type]
+    assert isinstance(learner, PESILearner)
+    # The co-teaching schedule of a run is kept for these methods alone (SIStudy.run_cell).
+    assert isinstance(learner.filter, CoTeachingFilter) == (method in si_methods.COTEACHING_METHODS)

@@ -23,10 +23,10 @@ import pandas as pd
 from hipref import sweep
 from hipref.envs.task import Clip
 from hipref.experiments import si_run
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 
 
-def noise_sweep(protocol: Protocol, noise_levels: list[float]) -> pd.DataFrame:
+def noise_sweep(protocol: SIStudy, noise_levels: list[float]) -> pd.DataFrame:
     """PESI at every noise level in each domain's environments, one run after another."""
     cells = [
         protocol.run_cell(domain, "pesi", truth, seed, noise=noise)
@@ -42,7 +42,7 @@ def forget_clips() -> None:
     sweep.forget_artefacts(lambda held: isinstance(held, list) and bool(held) and isinstance(held[0], Clip))
 
 
-def timed_sweep(protocol: Protocol, noise_levels: list[float], replay: bool) -> tuple[float, pd.DataFrame]:
+def timed_sweep(protocol: SIStudy, noise_levels: list[float], replay: bool) -> tuple[float, pd.DataFrame]:
     """Wall time and rows of one sweep, its clips replayed or every run's executed."""
     forget_clips()
     start = time.perf_counter()
@@ -61,7 +61,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
 
-    protocol = Protocol(heights=(0.7,), masses=(14.0,), episodes=args.episodes, eval_every=33)
+    protocol = SIStudy(heights=(0.7,), masses=(14.0,), episodes=args.episodes, eval_every=33)
     load_before = os.getloadavg()[0]
     with sweep.artefacts_in(sweep.NO_CACHE):
         noise_sweep(protocol, args.noise_levels[:1])  # models, controllers and evaluation episodes

@@ -29,12 +29,13 @@ import numpy as np
 import pandas as pd
 
 from hipref.experiments.domains import DOMAINS, domain_spec
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_clips import run_streams
 from hipref.experiments.si_methods import BAYES_METHODS, COTEACHING_METHODS, METHODS
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
 from hipref.learners.answer_models import TOLD, hypotheses, told
 from hipref.learners.bayes import BayesConfig, BayesLearner
+from hipref.learners.pesi import PESIConfig
 from hipref.learners.queries import QUERY_RULES
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
@@ -145,7 +146,7 @@ def run_answers(cell: AnswersCell) -> pd.DataFrame:
 
 
 @dataclass(frozen=True)
-class AnswersConfig(Protocol):
+class AnswersConfig(SIStudy):
     """Parameters of notebook 12 (the quick profile's sizes by default)."""
 
     domains: tuple[str, ...] = ("wiping", "pushing")
@@ -247,7 +248,9 @@ class AnswersConfig(Protocol):
                     method,
                     truth,
                     seed,
-                    fine_tuning=FineTuning(learning_rate=self.learning_rate, candidate_sampling=rule),
+                    fine_tuning=FineTuning(
+                        PESIConfig(learning_rate=self.learning_rate, candidate_sampling=rule)
+                    ),
                     noise=noise,
                     checkpoints=self.checkpoints,
                 ),

@@ -33,7 +33,7 @@ from hipref.envs.task import ROUTES, Task
 from hipref.experiments.controllers import truth_and_estimate
 from hipref.experiments.domains import DOMAINS, estimate_error_grids
 from hipref.experiments.low_level import LowLevel, demonstrations, learned_policy, make_task
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.learners.imitation import ImitationConfig, phi_response
@@ -70,8 +70,8 @@ CURVE_POINTS = 50
 
 
 @dataclass(frozen=True)
-class LearnedControllerConfig(Protocol):
-    """Parameters of notebook 10 (defaults: the quick profile). The SI fields are `Protocol`'s; the others
+class LearnedControllerConfig(SIStudy):
+    """Parameters of notebook 10 (defaults: the quick profile). The SI fields are `SIStudy`'s; the others
     size Algorithm 3 (the paper gives no numbers for it) and the controllers' comparison."""
 
     heights: tuple[float, ...] = (0.7,)

@@ -8,14 +8,14 @@ from typing import Any
 import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_int, check_range
 
 
 @dataclass(frozen=True)
-class NCandidatesConfig(Protocol):
+class NCandidatesConfig(SIStudy):
     """PESI's error over episodes with N = 2 (Eq. 2) and more (Eq. 3) candidates per query."""
 
     n_candidates: tuple[int, ...] = (2, 3, 5)

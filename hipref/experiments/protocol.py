@@ -12,12 +12,13 @@ from hipref.experiments.domains import DOMAINS, domain_spec, truth_grids
 from hipref.experiments.si_methods import COTEACHING_METHODS, LEARNING_METHODS
 from hipref.experiments.si_pretraining import PretrainCell, PretrainData, pretrain_models
 from hipref.experiments.si_run import FineTuning, SIRun
+from hipref.learners.pesi import PESIConfig
 from hipref.sweep import CacheDir
-from hipref.validation import check_int, check_range
+from hipref.validation import check_grids, check_int, check_range
 
 
 @dataclass(frozen=True)
-class Protocol:
+class SIStudy:
     """What the SI studies share: a fixed grid of true parameters crossed with seeds, the paper's
     evaluation protocol and Algorithm 4's size.
 
@@ -30,14 +31,14 @@ class Protocol:
     """True cube masses in kg of the pushing environments, each in [8, 20] (full profile: 5, evenly)."""
     seeds: int = 1
     """Seeds per true parameter; truths x seeds is the repetitions of the paper (A.7: 15)."""
-    episodes: int = 66
-    """Learning episodes per run, at least 1."""
-    eval_every: int = 33
-    """Learning episodes between evaluations (section 5: 33)."""
-    eval_episodes: int = 10
-    """Evaluation episodes per evaluation (section 5: 10)."""
-    eval_slices: int = 3
-    """Probing slices per evaluation episode (for the multi-slice estimate)."""
+    episodes: int = SIRun.episodes
+    """Learning episodes per run, at least 1 (`SIRun.episodes`)."""
+    eval_every: int = SIRun.eval_every
+    """Learning episodes between evaluations (section 5: 33, `SIRun.eval_every`)."""
+    eval_episodes: int = SIRun.eval_episodes
+    """Evaluation episodes per evaluation (section 5: 10, `SIRun.eval_episodes`)."""
+    eval_slices: int = SIRun.eval_slices
+    """Probing slices per evaluation episode (for the multi-slice estimate, `SIRun.eval_slices`)."""
     n_trajectories: int = 300
     """Algorithm 4 trajectories (the full profile: 3000, the study's; A.7's 100 starve SI, notebook 13)."""
     pretrain_steps: int = 500
@@ -45,10 +46,12 @@ class Protocol:
     pretrain_loss: str = "nll"
     """Algorithm 4's loss: 'nll' (the study's), or A.7's mean squared loss 'brier', 'expectation' or
     'brier_expectation' (see `PretrainData.loss`)."""
-    learning_rate: float = 1e-2
-    """Gradient step size of SI fine-tuning (A.7: 0.01)."""
+    learning_rate: float = PESIConfig.learning_rate
+    """Gradient step size of SI fine-tuning (A.7: 0.01, `PESIConfig.learning_rate`)."""
 
     def __post_init__(self) -> None:
+        # Types, and every grid a list of distinct values, for every study built on this base.
+        check_grids(self)
         for domain, values in truth_grids(self).items():
             name, candidates = DOMAINS[domain].truths, DOMAINS[domain].candidates
             if not values:
@@ -62,7 +65,7 @@ class Protocol:
         check_int("eval_every", self.eval_every, 1, self.episodes)
         check_int("eval_episodes", self.eval_episodes, 1)
         check_int("eval_slices", self.eval_slices, 1)
-        FineTuning(learning_rate=self.learning_rate)
+        PESIConfig(learning_rate=self.learning_rate)
         self.data  # noqa: B018 - validates n_trajectories, pretrain_steps and pretrain_loss
 
     @property
@@ -88,7 +91,11 @@ class Protocol:
     ) -> SIRun:
         """One run of this protocol; `setting` holds what the study varies (noise, N). OSI learns nothing,
         so its run ignores the fine-tuning and the noise: one OSI run per environment serves every study."""
-        tuning = fine_tuning if fine_tuning is not None else FineTuning(learning_rate=self.learning_rate)
+        tuning = (
+            fine_tuning
+            if fine_tuning is not None
+            else FineTuning(PESIConfig(learning_rate=self.learning_rate))
+        )
         if method not in LEARNING_METHODS:
             tuning, setting = FineTuning(), {k: v for k, v in setting.items() if k != "noise"}
         elif method not in COTEACHING_METHODS:

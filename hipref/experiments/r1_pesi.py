@@ -15,7 +15,7 @@ from typing import Any
 import pandas as pd
 
 from hipref.experiments.domains import DOMAINS, truth_grids
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
 from hipref.validation import check_int, check_range
@@ -29,12 +29,12 @@ HELD_OUT_METHODS: tuple[str, ...] = ("osi", "pesi")
 
 
 def held_out_field(domain: str) -> str:
-    """The field of `R1Config` holding `domain`'s held-out truths: 'held_out_' and the grid's field."""
+    """The field of `R1PESIConfig` holding `domain`'s held-out truths: 'held_out_' and the grid's field."""
     return f"held_out_{DOMAINS[domain].truths}"
 
 
 @dataclass(frozen=True)
-class R1Config(Protocol):
+class R1PESIConfig(SIStudy):
     """Fig. 2d (OSI, PESI, PESI-CE at every desk height of the grid) and Fig. 4 (PESI against OSI over
     episodes, both domains), with perfect preferences; OSI and PESI again on a held-out grid."""
 
@@ -68,18 +68,18 @@ class R1Config(Protocol):
         """Each domain's held-out true parameters (`held_out_field`)."""
         return {domain: getattr(self, held_out_field(domain)) for domain in DOMAINS}
 
-    def held_out(self) -> Protocol:
+    def held_out(self) -> SIStudy:
         """The held-out grid as a protocol of its own, evaluated after the last episode only."""
-        shared = {f.name: getattr(self, f.name) for f in dataclasses.fields(Protocol)}
+        shared = {f.name: getattr(self, f.name) for f in dataclasses.fields(SIStudy)}
         truths = {DOMAINS[domain].truths: grid for domain, grid in self.held_out_grids().items()}
-        return Protocol(**shared | truths | {"eval_every": self.episodes})
+        return SIStudy(**shared | truths | {"eval_every": self.episodes})
 
     def held_out_environments(self, domain: str) -> list[tuple[float, int]]:
         """Every (ground truth, seed) of `domain`'s held-out grid."""
         return [(truth, seed) for truth in self.held_out().truths(domain) for seed in self.held_out_seeds]
 
 
-def cells(cfg: R1Config) -> list[SIRun]:
+def cells(cfg: R1PESIConfig) -> list[SIRun]:
     return [
         cfg.run_cell(domain, method, truth, seed)
         for domain, methods in METHODS.items()
@@ -88,7 +88,7 @@ def cells(cfg: R1Config) -> list[SIRun]:
     ]
 
 
-def held_out_cells(cfg: R1Config) -> list[SIRun]:
+def held_out_cells(cfg: R1PESIConfig) -> list[SIRun]:
     held_out = cfg.held_out()
     return [
         held_out.run_cell(domain, method, truth, seed)
@@ -98,7 +98,7 @@ def held_out_cells(cfg: R1Config) -> list[SIRun]:
     ]
 
 
-def run(config: R1Config, **sweep: Any) -> pd.DataFrame:
+def run(config: R1PESIConfig, **sweep: Any) -> pd.DataFrame:
     """All runs, tidy (see `run_si`), with a `grid` column: 'study' for the grid's runs, 'held_out' for the
     held-out grid's. `sweep`: `run_sweep`'s options."""
     config.pretrain(METHODS, **sweep)

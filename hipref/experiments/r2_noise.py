@@ -12,14 +12,14 @@ from typing import Any
 import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_grids, check_range
+from hipref.validation import check_choice, check_range
 
 
 @dataclass(frozen=True)
-class R2Config(Protocol):
+class R2Config(SIStudy):
     """PESI's error over episodes at several levels of flipped preferences, in both domains."""
 
     noise_levels: tuple[float, ...] = (0.0, 0.3, 0.6)
@@ -28,8 +28,7 @@ class R2Config(Protocol):
     """Domains to run: Fig. 2e is wiping, Fig. 2f pushing."""
 
     def __post_init__(self) -> None:
-        check_grids(self)
-        super().__post_init__()
+        super().__post_init__()  # types and distinct grid values (`check_grids`) first
         if not self.noise_levels or not self.domains:
             raise ValueError(
                 f"noise_levels and domains must be non-empty, got {self.noise_levels!r} and {self.domains!r}"

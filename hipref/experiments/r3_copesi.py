@@ -15,11 +15,11 @@ import numpy as np
 import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_methods import METHODS as SI_METHODS
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_grids, check_int, check_range
+from hipref.validation import check_choice, check_int, check_range
 from hipref.verdicts import Difference, better_on_both, combine, no_difference, paired_difference
 
 METHODS: tuple[str, ...] = ("pesi", "co_pesi")
@@ -27,7 +27,7 @@ METHODS: tuple[str, ...] = ("pesi", "co_pesi")
 
 
 @dataclass(frozen=True)
-class R3Config(Protocol):
+class R3Config(SIStudy):
     """Parameters of notebook 04 (the paper's values where it gives them; the sizes of the quick profile)."""
 
     domains: tuple[str, ...] = ("wiping", "pushing")
@@ -47,8 +47,7 @@ class R3Config(Protocol):
     gives no horizon; empty: the last evaluation only; the full profile tests 33, 66 and 99)."""
 
     def __post_init__(self) -> None:
-        check_grids(self)
-        super().__post_init__()
+        super().__post_init__()  # types and distinct grid values (`check_grids`) first
         evaluated = range(0, self.episodes + 1, self.eval_every)
         for episode in self.claim_episodes:
             check_int("claim_episodes", episode, self.eval_every, self.episodes)

@@ -1,6 +1,7 @@
 """Teachers and robustness (notebook 11, beyond the paper): which learner is best under which teacher.
 
-The matrix teacher model x learner (`hipref.teachers.models`, `hipref.learners.robust`), in both domains.
+The matrix teacher model x learner (`hipref.teachers.models`; the robust learners' losses and filters,
+`hipref.learners.losses`, `hipref.learners.filters`), in both domains.
 Every learner of one environment (truth, seed) meets the same teacher draws, the same learning clips and
 the same evaluation episodes as plain PESI (`hipref.experiments.si_run`), so each is compared with PESI as
 a paired difference at the last evaluation (`hipref.verdicts`). The paper's flip teacher ('mistake') flips
@@ -22,11 +23,12 @@ import numpy as np
 import pandas as pd
 
 from hipref.experiments.domains import DOMAINS, domain_spec
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_clips import LearningSpec, learning_clips, run_streams
 from hipref.experiments.si_methods import METHODS as SI_METHODS
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.experiments.si_run import SIRun, run_si
+from hipref.learners.filters import NoUpdate
 from hipref.learners.noise_rate import likelihood_noise
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.numerics import one_thread
@@ -49,7 +51,7 @@ LEARNERS: tuple[str, ...] = (
     "pesi_rime",
     "co_pesi_likelihood",
 )
-"""The learners of the matrix: PESI, then the robust ones (`hipref.learners.robust`)."""
+"""The learners of the matrix: PESI, then the robust ones (their losses and filters in `hipref.learners`)."""
 
 TEACHERS: tuple[str, ...] = ("mistake", "stochastic", "skip", "equal", "myopic", "distance")
 """The teachers of the matrix: the paper's flip and the other models, each with its default parameters."""
@@ -70,7 +72,7 @@ claims' tolerance on the bias (estimate - true), a quarter of the paper's middle
 
 
 @dataclass(frozen=True)
-class RobustnessConfig(Protocol):
+class RobustnessConfig(SIStudy):
     """Parameters of notebook 11 (the quick profile's sizes by default)."""
 
     domains: tuple[str, ...] = ("wiping", "pushing")
@@ -156,13 +158,6 @@ class TeacherNoiseCell:
         check_int("episodes", self.episodes, 1)
 
 
-class _BufferOnly(PESILearner):
-    """A PESI learner that asks and stores but never updates SI: its buffer is the runs' buffer."""
-
-    def _learn(self) -> None:
-        pass
-
-
 def run_teacher_noise(cell: TeacherNoiseCell) -> pd.DataFrame:
     """The true and the estimated noise of one teacher on one environment's queries (a sweep cell).
 
@@ -191,7 +186,8 @@ def run_teacher_noise(cell: TeacherNoiseCell) -> pd.DataFrame:
             cell.episodes,
             model,
         )
-        learner = _BufferOnly(model, PESIConfig(history=h), integer_seed(learner_seq))
+        # A PESI learner that asks and stores but never updates SI: its buffer is the runs' buffer.
+        learner = PESILearner(model, PESIConfig(history=h), integer_seed(learner_seq), NoUpdate())
         for recorded in clips:
             query = learner.ask(recorded.replayer(h))
             learner.tell(query, teacher.answer(query))

@@ -20,9 +20,10 @@ from typing import Any
 import pandas as pd
 
 from hipref.experiments.domains import DOMAINS
-from hipref.experiments.protocol import Protocol
+from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_pretraining import PAPER_A7, PretrainCell, pretrain_models
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
+from hipref.learners.pesi import PESIConfig
 from hipref.sweep import run_sweep
 from hipref.validation import check_choice, check_range
 
@@ -31,17 +32,17 @@ VARIANTS: dict[str, tuple[str, int | None, FineTuning]] = {
     "paper_a7": (PAPER_A7.loss, PAPER_A7.n_trajectories, FineTuning()),
     "pretrain_expectation": ("expectation", None, FineTuning()),
     "pretrain_brier_expectation": ("brier_expectation", None, FineTuning()),
-    "belief_candidates": ("nll", None, FineTuning(candidate_sampling="belief")),
-    "pr_over_phi": ("nll", None, FineTuning(pr_domain="all")),
-    "last_layer": ("nll", None, FineTuning(fine_tuned="last_layer")),
-    "output_bias": ("nll", None, FineTuning(fine_tuned="output_bias")),
-    "learning_rate_0.001": ("nll", None, FineTuning(learning_rate=1e-3)),
-    "learning_rate_0.05": ("nll", None, FineTuning(learning_rate=5e-2)),
+    "belief_candidates": ("nll", None, FineTuning(PESIConfig(candidate_sampling="belief"))),
+    "pr_over_phi": ("nll", None, FineTuning(PESIConfig(pr_domain="all"))),
+    "last_layer": ("nll", None, FineTuning(PESIConfig(fine_tuned="last_layer"))),
+    "output_bias": ("nll", None, FineTuning(PESIConfig(fine_tuned="output_bias"))),
+    "learning_rate_0.001": ("nll", None, FineTuning(PESIConfig(learning_rate=1e-3))),
+    "learning_rate_0.05": ("nll", None, FineTuning(PESIConfig(learning_rate=5e-2))),
     "reset_every_step": ("nll", None, FineTuning(coteaching_schedule="reset_every_step")),
     "previous_design": (
         "expectation",
         PAPER_A7.n_trajectories,
-        FineTuning(candidate_sampling="belief", coteaching_schedule="reset_every_step"),
+        FineTuning(PESIConfig(candidate_sampling="belief"), coteaching_schedule="reset_every_step"),
     ),
 }
 """Variant name -> (Algorithm 4's loss, its trajectories (None: the config's `n_trajectories`), how
@@ -54,7 +55,7 @@ sampling that decides which pairs the classifiers see."""
 
 
 @dataclass(frozen=True)
-class SensitivityConfig(Protocol):
+class SensitivityConfig(SIStudy):
     """The variants x domains x environments of notebook 08. The protocol's `pretrain_loss` and
     `learning_rate` are not read: each variant sets its own (VARIANTS), and its trajectories where it names
     them."""
@@ -87,10 +88,10 @@ class SensitivityConfig(Protocol):
         check_range("noise", self.noise, 1e-9, 0.5 - 1e-9)
 
 
-def variant_protocol(config: SensitivityConfig, variant: str) -> tuple[Protocol, FineTuning]:
+def variant_protocol(config: SensitivityConfig, variant: str) -> tuple[SIStudy, FineTuning]:
     """The protocol (its pretraining set by the variant) and the fine-tuning of one variant."""
     loss, n_trajectories, tuning = VARIANTS[variant]
-    protocol = Protocol(
+    protocol = SIStudy(
         heights=config.heights,
         masses=config.masses,
         seeds=config.seeds,

@@ -17,7 +17,6 @@ import numpy as np
 from hipref.envs.task import Layout, Task, probe_slice
 from hipref.experiments.si_clips import run_streams
 from hipref.experiments.si_methods import Learner
-from hipref.learners.bayes import BayesLearner
 from hipref.learners.sysid import SIModel
 from hipref.sweep import cached_prefix
 
@@ -77,12 +76,12 @@ class Estimator(NamedTuple):
     mode: Callable[[np.ndarray], float]
 
 
-def estimator(learner: Learner | SIModel) -> Estimator:
-    """SI's read-outs (OSI, and every PESI learner's fine-tuned SI), or the Bayesian learner's."""
-    if isinstance(learner, BayesLearner):
-        return Estimator(learner.estimates, learner.mode)
-    model = learner if isinstance(learner, SIModel) else learner.model
-    return Estimator(model.predict, lambda tau: float(model.predict_mode(tau)))
+def estimator(learner: Learner | None, model: SIModel) -> Estimator:
+    """The learner's read-outs (a PESI learner's fine-tuned SI, or the Bayesian learner's posterior), or,
+    without a learner (OSI), the pretrained `model`'s."""
+    if learner is None:
+        return Estimator(model.predict, lambda tau: float(model.predict_mode(tau)))
+    return Estimator(learner.estimates, learner.mode)
 
 
 def evaluate(task: Task, model: Estimator, episodes: list[Episode], ground_truth: float) -> dict[str, float]:

@@ -8,26 +8,16 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from hipref.experiments.domains import domain_spec
 from hipref.learners.answer_models import hypotheses
 from hipref.learners.bayes import BayesConfig, BayesLearner
-from hipref.learners.coteaching import (
-    CoPESIConfig,
-    CoPESILearner,
-    EstimatedNoiseCoPESILearner,
-    reset_every_step_schedule,
-)
-from hipref.learners.pesi import PESIConfig, PESILearner
-from hipref.learners.robust import (
-    LabelSmoothingPESILearner,
-    LikelihoodNoiseCoPESILearner,
-    RobustPESIConfig,
-    SmallLossPESILearner,
-    TrustFlipPESILearner,
-    UnbiasedPESILearner,
-)
+from hipref.learners.coteaching import CoTeaching, reset_every_step_schedule
+from hipref.learners.filters import FilterSetting, SmallLoss, TrustFlip
+from hipref.learners.noise_estimation import DEFAULT_CONFLICT
+from hipref.learners.noise_rate import Algorithm5, FlipRate, Likelihood, Told
+from hipref.learners.pesi import PESI_FILTER, TRUSTING, PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
 
 if TYPE_CHECKING:
@@ -36,62 +26,64 @@ if TYPE_CHECKING:
 Learner = PESILearner | BayesLearner
 """What a method's learner is: PESI (and the learners built on it) or the Bayesian learner."""
 
-LearnerBuilder = Callable[["SIRun", SIModel, dict[str, Any], int], "Learner | None"]
+LearnerBuilder = Callable[["SIRun", SIModel, PESIConfig, int], "Learner | None"]
 """Builds a method's learner from the cell, the pretrained model, the PESI settings every method shares
-(`common`) and the learner's seed; None for a method that learns nothing."""
+(`pesi_config`) and the learner's seed; None for a method that learns nothing."""
+
+MAX_UNBIASED_RATE = 0.4
+"""The flip rate the unbiased loss and the small-loss filter use is capped at this, in [0, 0.5): the
+unbiased loss divides by 1 - 2 e."""
 
 
-def _coteaching_config(cell: SIRun, common: dict[str, Any]) -> CoPESIConfig:
-    spec = domain_spec(cell.domain)
-    learned = cell.fine_tuning.coteaching_schedule == "learned"
-    schedule = CoPESIConfig if learned else reset_every_step_schedule
-    return schedule(start_size=spec.batch_size, refresh_frequency=spec.refresh_frequency, **common)
+def _coteaching(cell: SIRun) -> CoTeaching:
+    refresh_frequency = domain_spec(cell.domain).refresh_frequency
+    if cell.fine_tuning.coteaching_schedule == "learned":
+        return CoTeaching(refresh_frequency=refresh_frequency)
+    return reset_every_step_schedule(refresh_frequency=refresh_frequency)
+
+
+def _pesi(
+    loss: str = "soft", filter: FilterSetting = PESI_FILTER, flip_rate: FlipRate = TRUSTING
+) -> LearnerBuilder:
+    """The preference learner with `loss`, `filter` and `flip_rate` on the run's PESI settings."""
+
+    def build(cell: SIRun, model: SIModel, config: PESIConfig, seed: int) -> Learner:
+        return PESILearner(model, dataclasses.replace(config, loss=loss), seed, filter, flip_rate)
+
+    return build
+
+
+def _co_pesi(flip_rate: Callable[[SIRun], FlipRate]) -> LearnerBuilder:
+    """CO-PESI: the preference learner with co-teaching (Algorithm 1) and the flip rate `flip_rate(cell)`."""
+
+    def build(cell: SIRun, model: SIModel, config: PESIConfig, seed: int) -> Learner:
+        return PESILearner(model, config, seed, _coteaching(cell), flip_rate(cell))
+
+    return build
 
 
 def _bayes_config(cell: SIRun) -> BayesConfig:
     models = hypotheses(cell.teacher, cell.noise, cell.told)
-    return BayesConfig(cell.n_candidates, cell.fine_tuning.candidate_sampling, models)
-
-
-def _robust_config(cell: SIRun, common: dict[str, Any]) -> RobustPESIConfig:
-    return RobustPESIConfig(start_size=domain_spec(cell.domain).batch_size, **common)
+    return BayesConfig(cell.n_candidates, cell.fine_tuning.pesi.candidate_sampling, models)
 
 
 LEARNERS: dict[str, LearnerBuilder] = {
-    "osi": lambda cell, model, common, seed: None,
-    "pesi": lambda cell, model, common, seed: PESILearner(model, PESIConfig(loss="soft", **common), seed),
-    "pesi_ce": lambda cell, model, common, seed: PESILearner(
-        model, PESIConfig(loss="standard", **common), seed
-    ),
-    "co_pesi": lambda cell, model, common, seed: CoPESILearner(
-        model, cell.noise, _coteaching_config(cell, common), seed
-    ),
+    "osi": lambda cell, model, config, seed: None,
+    "pesi": _pesi("soft"),
+    "pesi_ce": _pesi("standard"),
+    "co_pesi": _co_pesi(lambda cell: Told(cell.noise)),
     # A.9: the forget number comes from Algorithm 5 on the preferences so far, not the true noise.
-    "co_pesi_estimated": lambda cell, model, common, seed: EstimatedNoiseCoPESILearner(
-        model, _coteaching_config(cell, common), seed
-    ),
-    "co_pesi_estimated_same_pair": lambda cell, model, common, seed: EstimatedNoiseCoPESILearner(
-        model, _coteaching_config(cell, common), seed, conflict="same_pair"
-    ),
-    "pesi_smoothed": lambda cell, model, common, seed: LabelSmoothingPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "pesi_unbiased": lambda cell, model, common, seed: UnbiasedPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "pesi_small_loss": lambda cell, model, common, seed: SmallLossPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "pesi_rime": lambda cell, model, common, seed: TrustFlipPESILearner(
-        model, _robust_config(cell, common), seed
-    ),
-    "co_pesi_likelihood": lambda cell, model, common, seed: LikelihoodNoiseCoPESILearner(
-        model, _coteaching_config(cell, common), seed
-    ),
-    "bayes": lambda cell, model, common, seed: BayesLearner(
+    "co_pesi_estimated": _co_pesi(lambda cell: Algorithm5(DEFAULT_CONFLICT)),
+    "co_pesi_estimated_same_pair": _co_pesi(lambda cell: Algorithm5("same_pair")),
+    "pesi_smoothed": _pesi("smoothed"),
+    "pesi_unbiased": _pesi("unbiased", flip_rate=Likelihood(MAX_UNBIASED_RATE)),
+    "pesi_small_loss": _pesi(filter=SmallLoss(), flip_rate=Likelihood(MAX_UNBIASED_RATE)),
+    "pesi_rime": _pesi(filter=TrustFlip()),
+    "co_pesi_likelihood": _co_pesi(lambda cell: Likelihood()),
+    "bayes": lambda cell, model, config, seed: BayesLearner(
         model.candidates, _bayes_config(cell), seed, si_model=model
     ),
-    "bayes_si": lambda cell, model, common, seed: BayesLearner(
+    "bayes_si": lambda cell, model, config, seed: BayesLearner(
         model.candidates, dataclasses.replace(_bayes_config(cell), prior="si"), seed, si_model=model
     ),
 }
@@ -99,12 +91,12 @@ LEARNERS: dict[str, LearnerBuilder] = {
 (A.8); co_pesi: Algorithm 1 told the true noise level; co_pesi_estimated: Algorithm 1 with the noise level
 estimated by Algorithm 5 from the preferences so far (A.9), a conflict read as 'no parameter satisfies
 both'; co_pesi_estimated_same_pair: the same with a conflict read as opposite answers to the same pair.
-Beyond the paper (`hipref.learners.robust`): pesi_smoothed: label smoothing of Eq. 2 (conservative);
-pesi_unbiased: the unbiased loss with the estimated flip rate; pesi_small_loss: SI's own small-loss
-filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood: Algorithm 1 with the maximum marginal
-likelihood flip rate; bayes: the exact posterior over phi from every answer (`hipref.learners.bayes`), its
-model of the teacher chosen by marginal likelihood unless told; bayes_si: that posterior times SI's Pr(phi
-| tau) on the slice estimated from, so OSI's knowledge is kept."""
+Beyond the paper (`hipref.learners.losses`, `hipref.learners.filters`): pesi_smoothed: label smoothing of
+Eq. 2 (conservative); pesi_unbiased: the unbiased loss with the estimated flip rate; pesi_small_loss: SI's
+own small-loss filter; pesi_rime: RIME's trust-and-flip; co_pesi_likelihood: Algorithm 1 with the maximum
+marginal likelihood flip rate; bayes: the exact posterior over phi from every answer
+(`hipref.learners.bayes`), its model of the teacher chosen by marginal likelihood unless told; bayes_si:
+that posterior times SI's Pr(phi | tau) on the slice estimated from, so OSI's knowledge is kept."""
 
 METHODS: tuple[str, ...] = tuple(LEARNERS)
 """The methods' names, in LEARNERS' order."""
@@ -124,18 +116,19 @@ PAIR_METHODS: frozenset[str] = frozenset(METHODS) - {"osi", "pesi", "pesi_ce", "
 """Methods defined on pairs only (N = 2): classifiers of pairs, or losses mixing y and -y."""
 
 
-def make_learner(cell: SIRun, model: SIModel, seed: int) -> Learner | None:
-    """The learner of `cell.method` on a copy of the pretrained model; None for OSI (no updates)."""
+def pesi_config(cell: SIRun) -> PESIConfig:
+    """The PESI settings of the run's learner: the run's fine-tuning on the domain's batch size (also s,
+    where filters and flip-rate estimates start) and the data's slice length h."""
     spec = domain_spec(cell.domain)
-    tuning = cell.fine_tuning
-    common = dict(
-        encourage_percentage=tuning.encourage_percentage,
-        learning_rate=tuning.learning_rate,
+    return dataclasses.replace(
+        cell.fine_tuning.pesi,
         batch_size=spec.batch_size,
+        start_size=spec.batch_size,
         n_candidates=cell.n_candidates,
         history=cell.data.history,
-        candidate_sampling=tuning.candidate_sampling,
-        pr_domain=tuning.pr_domain,
-        fine_tuned=tuning.fine_tuned,
     )
-    return LEARNERS[cell.method](cell, model, common, seed)
+
+
+def make_learner(cell: SIRun, model: SIModel, seed: int) -> Learner | None:
+    """The learner of `cell.method` on a copy of the pretrained model; None for OSI (no updates)."""
+    return LEARNERS[cell.method](cell, model, pesi_config(cell), seed)

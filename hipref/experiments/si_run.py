@@ -18,33 +18,40 @@ evaluated (`hipref.experiments.si_evaluation`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from hipref.envs.task import observer
+from hipref.envs.task import Task, observer
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.low_level import make_task
 from hipref.experiments.si_clips import LearningSpec, learning_clips, run_streams
 from hipref.experiments.si_evaluation import EvaluationSpec, estimator, evaluate, evaluation_episodes
-from hipref.experiments.si_methods import BAYES_METHODS, METHODS, PAIR_METHODS, make_learner
+from hipref.experiments.si_methods import BAYES_METHODS, METHODS, PAIR_METHODS, Learner, make_learner
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.learners.answer_models import TOLD
-from hipref.learners.pesi import CANDIDATE_SAMPLING, FINE_TUNED, PR_DOMAINS
+from hipref.learners.pesi import PESIConfig
 from hipref.learners.queries import CHOSEN
+from hipref.learners.sysid import SIModel
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import integer_seed
 from hipref.teachers.models import TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import check_choice, check_field_types, check_int, check_range
 
 COTEACHING_SCHEDULES: tuple[str, ...] = ("learned", "reset_every_step")
-"""How CO-PESI's classifiers are refreshed (`hipref.learners.coteaching.CoPESIConfig`): 'learned', the
+"""How CO-PESI's classifiers are refreshed (`hipref.learners.coteaching.CoTeaching`): 'learned', the
 refresh counted in preferences with several classifier rounds per preference (default); 'reset_every_step',
 the refresh counted in single co-teaching steps with one round each, under which the classifiers are reset
 before they can learn the (pair -> label) rule."""
+
+
+RUN_SET: tuple[str, ...] = ("loss", "batch_size", "start_size", "n_candidates", "history")
+"""The PESI settings a run sets itself: the loss (the method's), the batch size and s (the domain's), N
+(`SIRun.n_candidates`) and h (the data's)."""
 
 
 @dataclass(frozen=True)
@@ -52,27 +59,19 @@ class FineTuning:
     """How preferences fine-tune SI (Algorithm 2, Eq. 2/3; Algorithm 1 for CO-PESI): the paper's reading by
     default, the alternatives a sensitivity study compares (notebook 08)."""
 
-    learning_rate: float = 1e-2
-    """Plain gradient step size of SI fine-tuning (A.7: 0.01)."""
-    encourage_percentage: float = 0.25
-    """p of Eq. 2 (A.7: 0.25)."""
-    candidate_sampling: str = "uniform"
-    """'uniform' (Algorithm 2: 'sampled from Phi'), 'belief' (from SI's current distribution) or a query
-    rule of `hipref.learners.queries` ('thompson', 'information_gain', 'volume_removal'); the Bayesian
-    learner takes 'uniform' or a rule."""
-    pr_domain: str = "query"
-    """Pr of Eq. 2 over the queried candidates ('query') or all of Phi ('all')."""
-    fine_tuned: str = "all"
-    """Which parameters of SI are updated: 'all', 'last_layer' or 'output_bias'."""
+    pesi: PESIConfig = PESIConfig()  # noqa: RUF009 - frozen, so a shared default is safe
+    """The learner's settings (`hipref.learners.pesi.PESIConfig`: p, the learning rate, the query rule, the
+    domain of Pr, the parameters fine-tuned); those of RUN_SET keep their defaults, the run sets them."""
     coteaching_schedule: str = "learned"
     """CO-PESI's classifier schedule, one of COTEACHING_SCHEDULES."""
 
     def __post_init__(self) -> None:
-        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
-        check_range("encourage_percentage", self.encourage_percentage, 0.0, 1.0)
-        check_choice("candidate_sampling", self.candidate_sampling, CANDIDATE_SAMPLING)
-        check_choice("pr_domain", self.pr_domain, PR_DOMAINS)
-        check_choice("fine_tuned", self.fine_tuned, FINE_TUNED)
+        check_field_types(self)
+        if not isinstance(self.pesi, PESIConfig):
+            raise ValueError(f"pesi must be a PESIConfig, got {self.pesi!r}")
+        for name in RUN_SET:
+            if getattr(self.pesi, name) != getattr(PESIConfig, name):
+                raise ValueError(f"pesi.{name} is set by the run, got {getattr(self.pesi, name)!r}")
         check_choice("coteaching_schedule", self.coteaching_schedule, COTEACHING_SCHEDULES)
 
 
@@ -93,8 +92,9 @@ class SIRun:
     and truth give every method the same teacher draws and the same evaluation episodes."""
     n_candidates: int = 2
     """N, candidates per query (Eq. 3, A.2); CO-PESI needs 2."""
-    episodes: int = 99
-    """Learning episodes (preferences asked), at least 1."""
+    episodes: int = 66
+    """Learning episodes (preferences asked), at least 1: two evaluation periods of 33 by default, the quick
+    profile's (the full profile: 198, or 99 in notebooks 10 and 11)."""
     eval_every: int = 33
     """Learning episodes between evaluations (section 5: 33)."""
     eval_episodes: int = 10
@@ -117,6 +117,7 @@ class SIRun:
     every `eval_every` (section 5)."""
 
     def __post_init__(self) -> None:
+        check_field_types(self)
         spec = domain_spec(self.domain)
         check_choice("method", self.method, METHODS)
         check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
@@ -141,7 +142,7 @@ class SIRun:
         check_choice("told", self.told, TOLD)
         if self.told != "nothing" and self.method not in BAYES_METHODS:
             raise ValueError(f"told is for the 'bayes' method, got method {self.method!r}")
-        if self.method in BAYES_METHODS and self.fine_tuning.candidate_sampling == "belief":
+        if self.method in BAYES_METHODS and self.fine_tuning.pesi.candidate_sampling == "belief":
             raise ValueError(
                 "candidate_sampling 'belief' is PESI's; the 'bayes' method takes 'uniform' or a rule"
             )
@@ -156,61 +157,91 @@ class SIRun:
         return self.checkpoints or tuple(range(0, self.episodes + 1, self.eval_every))
 
 
+Observe = Callable[[float, np.random.Generator], np.ndarray]
+"""What a learner's query executes: pi^l with a candidate phi, returning a slice tau cut with the rng."""
+
+
+def algorithm_2(
+    learner: Learner, teacher: ScriptedPreferenceTeacher, observe: Callable[[int], Observe], episodes: range
+) -> None:
+    """Algorithm 2 (module docstring) over the learning episodes `episodes`:
+
+        for i in episodes do
+            Execute policy pi^l_phi with phi_0, phi_1 sampled from Phi   } learner.ask(observe(i))
+            Sample trajectory slice tau                                  }
+            Ask for human preference y                                   teacher.answer
+            Update system identification model SI by Eqn. 2              learner.tell
+        end for
+
+    `observe(i)` executes pi^l in episode i's world (a stored clip replayed, or a fresh layout).
+    """
+    for i in episodes:
+        query = learner.ask(observe(i))
+        learner.tell(query, teacher.answer(query))
+
+
+def _teacher(cell: SIRun, teacher_seq: np.random.SeedSequence) -> ScriptedPreferenceTeacher:
+    phi = domain_spec(cell.domain).candidates
+    return ScriptedPreferenceTeacher(
+        cell.ground_truth,
+        cell.noise,
+        np.random.default_rng(teacher_seq),
+        cell.teacher,
+        scale=phi.high - phi.low,
+        bounds=(phi.low, phi.high),
+    )
+
+
+def _observer(
+    cell: SIRun, task: Task, model: SIModel, learn_seq: np.random.SeedSequence
+) -> Callable[[int], Observe]:
+    """Episode i's execution of pi^l: with uniform candidates, the clips every run of the environment
+    shares (`learning_clips`: the Bayesian learner draws uniform queries as PESI does, so the same clips),
+    replayed; otherwise a fresh layout from the run's own stream."""
+    h = cell.data.history
+    if cell.fine_tuning.pesi.candidate_sampling == "uniform":
+        learning = LearningSpec(
+            cell.domain, cell.ground_truth, cell.seed, cell.n_candidates, h, cell.data.low_level.key
+        )
+        clips = learning_clips(task, learning, cell.episodes, model)
+        return lambda i: clips[i].replayer(h)
+    learn_rng = np.random.default_rng(learn_seq)
+    return lambda i: observer(task, cell.ground_truth, task.sample_layout(learn_rng), h)
+
+
 def run_si(cell: SIRun) -> pd.DataFrame:
     """One run of `cell` (a sweep cell function): tidy rows of every metric per evaluation.
 
-    Learners with a filter (`filter_precision_recall` not None) also report its precision and recall
-    against the flips the scripted teacher recorded (never shown to the learner), counted over the
-    learning so far.
+    Between evaluations the learner learns by `algorithm_2`; at each, it is frozen and evaluated
+    (`hipref.experiments.si_evaluation`). Learners with a filter (`filter_precision_recall` not None) also
+    report its precision and recall against the flips the scripted teacher recorded (never shown to the
+    learner), counted over the learning so far.
     """
     model = pretrained_model(cell.domain, cell.data)
     with one_thread():
         teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed, cell.ground_truth)
         truth = cell.ground_truth
         task = make_task(cell.domain, cell.data.low_level)
-        phi = domain_spec(cell.domain).candidates
-        teacher = ScriptedPreferenceTeacher(
-            truth,
-            cell.noise,
-            np.random.default_rng(teacher_seq),
-            cell.teacher,
-            scale=phi.high - phi.low,
-            bounds=(phi.low, phi.high),
-        )
+        teacher = _teacher(cell, teacher_seq)
         learner = make_learner(cell, model, integer_seed(learner_seq))
-        learn_rng = np.random.default_rng(learn_seq)
-        h = cell.data.history
-        evaluated_at = cell.evaluated_at
-        n_checkpoints = len(evaluated_at)
         low_level = cell.data.low_level.key
+        evaluated_at = cell.evaluated_at
         spec = EvaluationSpec(
-            cell.domain, truth, cell.seed, cell.eval_episodes, cell.eval_slices, h, low_level
+            cell.domain, truth, cell.seed, cell.eval_episodes, cell.eval_slices, cell.data.history, low_level
         )
-        checkpoints = evaluation_episodes(task, spec, n_checkpoints)
-        clips = None
-        if learner is not None and cell.fine_tuning.candidate_sampling == "uniform":
-            # The Bayesian learner draws uniform queries as PESI does: the same clips, replayed.
-            learning = LearningSpec(cell.domain, truth, cell.seed, cell.n_candidates, h, low_level)
-            clips = learning_clips(task, learning, cell.episodes, model)
+        checkpoints = evaluation_episodes(task, spec, len(evaluated_at))
+        observe = None if learner is None else _observer(cell, task, model, learn_seq)
         rows: list[tuple[int, str, float]] = []
-        for episode in range(cell.episodes + 1):
-            if episode in evaluated_at:
-                current = estimator(model if learner is None else learner)
-                metrics = evaluate(task, current, checkpoints[evaluated_at.index(episode)], truth)
-                quality = None if learner is None else learner.filter_precision_recall(teacher.wrong_labels)
-                if quality is not None:
-                    metrics |= {"filter_precision": quality[0], "filter_recall": quality[1]}
-                rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
-            if episode == cell.episodes or learner is None:
-                continue
-            # Algorithm 2: execute pi^l with the candidates from one layout, sample a slice tau, ask for a
-            # preference y, update SI (Eq. 2/3).
-            if clips is not None:
-                query = learner.ask(clips[episode].replayer(h))
-            else:
-                layout = task.sample_layout(learn_rng)
-                query = learner.ask(observer(task, truth, layout, h))
-            learner.tell(query, teacher.answer(query))
+        learned = 0
+        for episode, episodes in zip(evaluated_at, checkpoints, strict=True):
+            if learner is not None and observe is not None:
+                algorithm_2(learner, teacher, observe, range(learned, episode))
+                learned = episode
+            metrics = evaluate(task, estimator(learner, model), episodes, truth)
+            quality = None if learner is None else learner.filter_precision_recall(teacher.wrong_labels)
+            if quality is not None:
+                metrics |= {"filter_precision": quality[0], "filter_recall": quality[1]}
+            rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
     return tidy_rows(
         rows,
         domain=cell.domain,
@@ -222,8 +253,8 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         **({} if cell.teacher == TeacherModel() else {"teacher": cell.teacher.name}),
         **({} if low_level == ("admittance",) else {"low_level": cell.data.low_level.kind}),
         **(
-            {"query_rule": cell.fine_tuning.candidate_sampling}
-            if cell.fine_tuning.candidate_sampling in CHOSEN
+            {"query_rule": cell.fine_tuning.pesi.candidate_sampling}
+            if cell.fine_tuning.pesi.candidate_sampling in CHOSEN
             else {}
         ),
         **({"told": cell.told} if cell.told != "nothing" else {}),

@@ -353,10 +353,15 @@ class BayesLearner:
         """The estimate on each of (slices, input_dim) slices (the same for each under prior 'uniform')."""
         return np.array([self.estimate(s) for s in slices])
 
+    def running_estimate(self, evaluation: np.ndarray) -> float:
+        """What the learner gives the controller during a teaching session: the posterior median, read
+        without the session's probing slices `evaluation`."""
+        return self.estimate()
+
     def filter_precision_recall(self, wrong_labels: list[bool]) -> tuple[float, float]:
         """The posterior as a filter of wrong answers: an answer is flagged when Pr(wrong | answers) > 1/2.
         Precision (wrong among flagged) and recall (flagged among wrong) against the teacher's record, NaN
-        where undefined, as `CoPESILearner.filter_precision_recall`."""
+        where undefined, as `PESILearner.filter_precision_recall`."""
         flagged = self.posterior.wrong_probabilities() > 0.5
         wrong = np.asarray(wrong_labels, dtype=bool)
         if wrong.shape != flagged.shape:

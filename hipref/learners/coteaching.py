@@ -8,18 +8,14 @@ on the last b_0, and the filter's precision and recall against the teacher's rec
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from hipref.learners.coteaching_pair import CoTeachingPair, classifier_inputs
-from hipref.learners.noise_estimation import CONFLICTS, DEFAULT_CONFLICT, estimate_noise
-from hipref.learners.pesi import PESIConfig, PESILearner
-from hipref.learners.sysid import SIModel
-from hipref.seeds import integer_seed
-from hipref.validation import check_choice, check_int, check_range
+from hipref.learners.filters import Filter, SILearner, UpdateLog
+from hipref.validation import check_choice, check_field_types, check_int, check_range
 
 REFRESH_UNITS: tuple[str, ...] = ("preferences", "steps")
 """What f_refresh counts: received preferences |D| (default) or classifier co-teaching steps (the
@@ -29,9 +25,13 @@ RAMP_ORIGINS: tuple[str, ...] = ("refresh", "start")
 
 
 @dataclass(frozen=True)
-class CoPESIConfig(PESIConfig):
-    """Algorithm 1 on top of PESI's settings (Table 2 for desk height; cube mass uses 32 for
-    batch_size, refresh_frequency and start_size).
+class CoTeaching:
+    """Algorithm 1, the co-teaching filter of a preference learner, which makes PESI CO-PESI (Table 2 for
+    desk height; cube mass uses 32 for refresh_frequency, and for the learner's batch_size and start_size).
+
+    `noise_level`, the fraction of flipped preferences assumed, is the learner's flip rate: the true one
+    (co_pesi), or an estimate (A.9) for co_pesi_estimated. Following A.7 the remember rate is
+    1 - noise_level, so the final forget rate is noise_level and n_forget = round(forget_rate * batch).
 
     The schedule, per received preference. While |D| <= s: one SI update by Eq. 2 on an unfiltered batch,
     as PESI makes (`update_before_start`). Afterwards: re-initialise M_0, M_1 if |D| has just reached a
@@ -45,7 +45,7 @@ class CoPESIConfig(PESIConfig):
     (tests/test_coteaching.py).
 
     How t was chosen: the filter's precision (flipped share of the forgotten samples) and recall
-    (`CoPESILearner.filter_precision_recall`) on synthetic preferences: random 4-d features, an SIModel
+    (`PESILearner.filter_precision_recall`) on synthetic preferences: random 4-d features, an SIModel
     (hidden 64, 32), a truth uniform in the range, 99 preferences (R3's scale), the learner's own queries,
     mean of 8 seeds (standard errors 0.02-0.09). 'uniform': candidates uniform over Phi; 'belief':
     drawn from a pretrained SI's belief, so concentrated near the truth and harder to tell apart.
@@ -83,9 +83,6 @@ class CoPESIConfig(PESIConfig):
     """Adam step size of the co-teaching classifiers M_0, M_1 (Table 2)."""
     classifier_hidden_sizes: tuple[int, ...] = (64, 64)
     """Hidden layer widths of M_0 and M_1, ReLU activations (Table 2)."""
-    start_size: int = 16
-    """s: co-teaching begins once |D| > s (Alg. 1 l.5). Not given in the paper; by default a full batch must
-    be available."""
     refresh_frequency: int = 16
     """f_refresh: M_0 and M_1 are re-initialised each time the counted quantity (`refresh_unit`) reaches a
     multiple of this (Alg. 1 l.6-7; Table 2: 16 for height, 32 for mass), so they never run long enough
@@ -112,12 +109,10 @@ class CoPESIConfig(PESIConfig):
     Alg. 1 l.5 read literally, the reset-every-step schedule). True keeps one SI update per preference, so
     CO-PESI and PESI make the same number of updates and differ only by the filter."""
 
+    pairs_only = True
+
     def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.n_candidates != 2:
-            raise ValueError(
-                f"n_candidates must be 2 for CO-PESI (pair classifiers), got {self.n_candidates}"
-            )
+        check_field_types(self)
         check_range("classifier_learning_rate", self.classifier_learning_rate, 1e-8, 1.0)
         if not self.classifier_hidden_sizes or not all(
             isinstance(h, int) and h >= 1 for h in self.classifier_hidden_sizes
@@ -126,212 +121,105 @@ class CoPESIConfig(PESIConfig):
                 f"classifier_hidden_sizes must be a non-empty tuple of positive integers, "
                 f"got {self.classifier_hidden_sizes!r}"
             )
-        check_int("start_size", self.start_size, 0)
         check_int("refresh_frequency", self.refresh_frequency, 1)
         check_choice("refresh_unit", self.refresh_unit, REFRESH_UNITS)
         check_int("rounds", self.rounds, 1)
         check_int("ramp_steps", self.ramp_steps, 0)
         check_choice("ramp_origin", self.ramp_origin, RAMP_ORIGINS)
-        if not isinstance(self.update_before_start, bool):
-            raise ValueError(f"update_before_start must be True or False, got {self.update_before_start!r}")
+
+    def start(self, learner: SILearner) -> Filter:
+        return CoTeachingFilter(learner, self)
 
 
-def reset_every_step_schedule(**overrides: Any) -> CoPESIConfig:
+def reset_every_step_schedule(**overrides: Any) -> CoTeaching:
     """The reset-every-step schedule: one classifier step per preference, a refresh every f_refresh such
     steps, the ramp from the first step only, and no SI update while |D| <= s; for the sensitivity study."""
     settings: dict[str, Any] = dict(
         refresh_unit="steps", rounds=1, ramp_origin="start", update_before_start=False
     )
-    return CoPESIConfig(**{**settings, **overrides})
+    return CoTeaching(**{**settings, **overrides})
 
 
-class SIUpdateRecord(NamedTuple):
-    """One SI update's minibatch and what the filter withheld from it, as indices into the buffer D."""
+class CoTeachingFilter(UpdateLog):
+    """Algorithm 1's running filter of one learner: the classifiers M_0, M_1 and their schedule.
 
-    batch: np.ndarray
-    """The buffer entries of the batch b the last co-teaching step selected from."""
-    forgotten: np.ndarray
-    """The entries of b not in b_0, i.e. not shown to SI (empty before co-teaching starts)."""
-
-
-def filter_quality(
-    si_updates: Sequence[SIUpdateRecord], flipped: Sequence[bool] | np.ndarray, size: int
-) -> tuple[float, float]:
-    """A filter's precision and recall against the teacher's flips, over the SI updates `si_updates` of a
-    buffer D of `size` preferences.
-
-    flipped[i] says whether the teacher flipped the i-th preference of D (a scripted teacher knows; the
-    learner never uses it). The counting unit is one (SI update, buffer entry) occurrence: an entry that
-    sits in the batches of k updates counts k times, and an entry forgotten by k of them counts k times as
-    forgotten. With F the forgotten occurrences and B the batch occurrences,
-
-        precision = |flipped occurrences in F| / |F|,
-        recall    = |flipped occurrences in F| / |flipped occurrences in B|.
-
-    Updates before the filter starts (CO-PESI's `update_before_start`) forget nothing and count in B, so
-    recall measures how many of the flipped labels SI was offered the filter kept from it. Either is NaN
-    when its denominator is 0 (nothing forgotten; no flipped entry in any batch).
-    """
-    flags = np.asarray(flipped)
-    if flags.shape != (size,):
-        raise ValueError(f"flipped must hold one flag per preference in D ({size}), got shape {flags.shape}")
-    if flags.dtype != np.bool_:
-        if not np.isin(flags, (0, 1)).all():
-            raise ValueError(f"flipped must hold booleans, got values {np.unique(flags).tolist()!r}")
-        flags = flags.astype(bool)
-    forgotten = sum(len(r.forgotten) for r in si_updates)
-    flipped_forgotten = sum(int(flags[r.forgotten].sum()) for r in si_updates)
-    flipped_offered = sum(int(flags[r.batch].sum()) for r in si_updates)
-    precision = flipped_forgotten / forgotten if forgotten else math.nan
-    recall = flipped_forgotten / flipped_offered if flipped_offered else math.nan
-    return precision, recall
-
-
-class CoPESILearner(PESILearner):
-    """Algorithm 1 through the same ask/tell/estimate as PESILearner; only the learning step differs.
-
-    `noise_level` is the fraction of flipped preferences assumed: the true one, or an estimate (A.9) for
-    co_pesi_estimated. Following A.7 the remember rate is 1 - noise_level, so the final forget rate is
-    noise_level and n_forget = round(forget_rate * batch).
-
-    Every SI update is recorded in `si_updates` (its batch and the forgotten entries), so the filter can
-    be scored against the teacher's recorded flips (`filter_precision_recall`); the learner itself never
-    sees which labels were flipped.
+    Every SI update is recorded (its batch and the forgotten entries), so the filter can be scored against
+    the teacher's recorded flips (`precision_recall`); the learner itself never sees which labels were
+    flipped.
     """
 
-    def __init__(
-        self, model: SIModel, noise_level: float, config: CoPESIConfig | None = None, seed: int = 0
-    ) -> None:
-        config = config if config is not None else CoPESIConfig()
-        if not isinstance(config, CoPESIConfig):
-            raise ValueError(f"config must be a CoPESIConfig, got {type(config).__name__}")
-        check_range("noise_level", noise_level, 0.0, 1.0)
-        super().__init__(model, config, seed)
-        self.config: CoPESIConfig = config
-        self.noise_level = float(noise_level)
+    def __init__(self, learner: SILearner, setting: CoTeaching) -> None:
+        super().__init__(learner)
+        self.setting = setting
         # Preferences whose learning step ran co-teaching (|D| > s), and classifier steps over all of them.
         self.coteaching_steps = 0
         self.classifier_steps = 0
         # |D| at each re-initialisation of M_0, M_1 (their construction is not counted).
         self.refreshed_at: list[int] = []
-        # Every SI update's batch and forgotten entries, for `filter_precision_recall`.
-        self.si_updates: list[SIUpdateRecord] = []
         self.pair = CoTeachingPair(
-            config.classifier_hidden_sizes, config.classifier_learning_rate, self._next_seed()
+            setting.classifier_hidden_sizes, setting.classifier_learning_rate, learner.next_seed()
         )
         self._steps_since_refresh = 0
         self._refresh_period: int | None = None
         # Buffer indices of the most recent b_0 given to SI, kept for inspection.
         self.last_selection: np.ndarray | None = None
 
-    @property
-    def remember_rate(self) -> float:
-        """Fraction of each batch kept once the ramp is over (A.7: 1 - noise level)."""
-        return 1.0 - self.noise_level
+    def forget_rate(self, step: int, noise_level: float) -> float:
+        """Han et al.'s schedule: a linear ramp from 0 to 1 - remember rate = noise_level (A.7) over
+        `ramp_steps` classifier steps, `step` counting from the ramp's origin (`CoTeaching.ramp_origin`)."""
+        ramp = 1.0 if self.setting.ramp_steps == 0 else min(1.0, step / self.setting.ramp_steps)
+        remember_rate = 1.0 - noise_level
+        return (1.0 - remember_rate) * ramp
 
-    def _next_seed(self) -> int:
-        return integer_seed(self._torch_seeds.spawn(1)[0])
-
-    def forget_rate(self, step: int) -> float:
-        """Han et al.'s schedule: a linear ramp from 0 to 1 - remember_rate over `ramp_steps` classifier
-        steps, `step` counting from the ramp's origin (`CoPESIConfig.ramp_origin`)."""
-        ramp = 1.0 if self.config.ramp_steps == 0 else min(1.0, step / self.config.ramp_steps)
-        return (1.0 - self.remember_rate) * ramp
-
-    def forget_number(self, step: int, batch_size: int) -> int:
+    def forget_number(self, step: int, batch_size: int, noise_level: float) -> int:
         """n_forget for a batch, rounded half up, and always leaving at least one sample to learn from."""
-        return min(math.floor(self.forget_rate(step) * batch_size + 0.5), batch_size - 1)
+        return min(math.floor(self.forget_rate(step, noise_level) * batch_size + 0.5), batch_size - 1)
 
     def _refresh(self) -> None:
         # Alg. 1 l.7: randomly initialise M_0 and M_1.
-        self.pair.reinitialise(self._next_seed())
-        self.refreshed_at.append(len(self))
+        self.pair.reinitialise(self.learner.next_seed())
+        self.refreshed_at.append(len(self.learner))
         self._steps_since_refresh = 0
 
-    def _learn(self) -> None:
-        # Alg. 1 l.5: the classifiers wait until the buffer holds more than s preferences.
-        if len(self) <= self.config.start_size:
-            if self.config.update_before_start:
-                batch = self._sample_batch()
-                self._record(batch, batch[:0])
-                self._update_si(batch)
-            return
+    def _refresh_by_preferences(self) -> None:
         # Alg. 1 l.6-7, f_refresh counted in preferences: re-initialise when |D| reaches a new multiple of
         # f_refresh. The classifiers start fresh, so the first co-teaching preference only notes the period.
-        if self.config.refresh_unit == "preferences":
-            period = len(self) // self.config.refresh_frequency
-            if self._refresh_period is not None and period != self._refresh_period:
-                self._refresh()
-            self._refresh_period = period
+        period = len(self.learner) // self.setting.refresh_frequency
+        if self._refresh_period is not None and period != self._refresh_period:
+            self._refresh()
+        self._refresh_period = period
+
+    def learn(self, rate: float) -> None:
+        learner, setting = self.learner, self.setting
+        # Alg. 1 l.5: the classifiers wait until the buffer holds more than s preferences.
+        if len(learner) <= learner.start_size:
+            if setting.update_before_start:
+                self.warm_up(learner.sample_batch(), rate)
+            return
+        if setting.refresh_unit == "preferences":
+            self._refresh_by_preferences()
         b0 = batch = np.empty(0, dtype=np.int64)
-        for _ in range(self.config.rounds):
+        for _ in range(setting.rounds):
             if (
-                self.config.refresh_unit == "steps"
+                setting.refresh_unit == "steps"
                 and self.classifier_steps > 0
-                and self.classifier_steps % self.config.refresh_frequency == 0
+                and self.classifier_steps % setting.refresh_frequency == 0
             ):
                 self._refresh()
             # Alg. 1 l.9: sample batch b from D
-            batch = self._sample_batch()
-            _, indices, labels = self._batch_tensors(batch)
-            pairs = classifier_inputs(self.model.normalised_values[indices])
+            batch = learner.sample_batch()
+            _, indices, labels = learner.batch_tensors(batch)
+            pairs = classifier_inputs(learner.model.normalised_values[indices])
             targets = (labels[:, 0] < 0).long()  # y = 1 -> class 0, y = -1 -> class 1
             # Alg. 1 l.10-13: select b_0, b_1 and cross-update M_0, M_1
             ramp_step = (
-                self._steps_since_refresh if self.config.ramp_origin == "refresh" else self.classifier_steps
+                self._steps_since_refresh if setting.ramp_origin == "refresh" else self.classifier_steps
             )
-            b0, _ = self.pair.step(pairs, targets, self.forget_number(ramp_step, len(batch)))
+            b0, _ = self.pair.step(pairs, targets, self.forget_number(ramp_step, len(batch), rate))
             self.classifier_steps += 1
             self._steps_since_refresh += 1
         # Alg. 1 l.14: update SI by Eq. 2 on the last b_0, once per preference as PESI does
         self.last_selection = batch[b0]
-        self._record(batch, np.setdiff1d(batch, batch[b0]))
-        self._update_si(batch[b0])
+        self.record(batch, np.setdiff1d(batch, batch[b0]))
+        learner.update_si(batch[b0], rate)
         self.coteaching_steps += 1
-
-    def _record(self, batch: np.ndarray, forgotten: np.ndarray) -> None:
-        self.si_updates.append(SIUpdateRecord(np.array(batch), np.array(forgotten)))
-
-    def filter_precision_recall(self, flipped: Sequence[bool] | np.ndarray) -> tuple[float, float]:
-        """The filter's precision and recall against the teacher's flips (`filter_quality`)."""
-        return filter_quality(self.si_updates, flipped, len(self))
-
-
-class EstimatedNoiseCoPESILearner(CoPESILearner):
-    """co_pesi_estimated (A.9, Figs. 8-9): CO-PESI whose noise level comes from Algorithm 5, not the teacher.
-
-    When: once per received preference, as soon as the buffer holds more than s = start_size preferences,
-    before that preference's co-teaching (Alg. 1 l.6-14: refresh check, `rounds` classifier steps, one SI
-    update), Algorithm 5 is run on the whole buffer D collected so far and its output becomes
-    `noise_level`, hence the forget rate (1 - remember rate, A.7) and n_forget = round(forget_rate * batch)
-    for all of that preference's rounds. How: each buffered preference (phi_0, phi_1, y) is one entry
-    of a PreferenceSet; a run has one environment, so all of them describe the same true parameter, as
-    Algorithm 5 assumes. The estimate is taken as written: with no conflicts at all it is 1.0, which
-    CoPESILearner caps at keeping one sample per batch. `noise_history` keeps every estimate.
-
-    `conflict` is Algorithm 5's reading of a conflict (`hipref.learners.noise_estimation.CONFLICTS`); the
-    paper does not say which one Figs. 8-9 used, so notebook 06 runs both.
-    """
-
-    def __init__(
-        self,
-        model: SIModel,
-        config: CoPESIConfig | None = None,
-        seed: int = 0,
-        conflict: str = DEFAULT_CONFLICT,
-    ) -> None:
-        check_choice("conflict", conflict, CONFLICTS)
-        # The starting level is never used: the first co-teaching preference re-estimates it from D.
-        super().__init__(model, 0.0, config, seed)
-        self.conflict = conflict
-        self.noise_history: list[float] = []
-
-    def estimated_noise_level(self) -> float:
-        """The noise level of D: Algorithm 5 on `buffer_preferences`, a conflict read as `conflict`."""
-        return estimate_noise(self.buffer_preferences(), self.conflict)
-
-    def _learn(self) -> None:
-        if len(self) > self.config.start_size:
-            self.noise_level = self.estimated_noise_level()
-            self.noise_history.append(self.noise_level)
-        super()._learn()

@@ -15,14 +15,22 @@ e.
 - `repeated_pair_noise`, from pairs asked more than once: two answers to the same pair disagree with
   probability d = 2 e (1 - e), so e = (1 - sqrt(1 - 2 d)) / 2, with d the disagreeing share of all pairs of
   answers to one pair. It needs no model of phi* at all, only repeated pairs (NaN without any).
+
+A preference learner (`hipref.learners.pesi.PESILearner`) takes its flip rate e from one source: `Told`
+(the teacher's rate, or 0 for a learner that trusts every label), `Algorithm5` (A.9's estimate under a
+reading of a conflict) or `Likelihood` (`likelihood_noise`), the last two on the buffer D so far.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
 import numpy as np
 
-from hipref.learners.noise_estimation import PreferenceSet
-from hipref.validation import check_int, check_range
+from hipref.learners.noise_estimation import CONFLICTS, DEFAULT_CONFLICT, PreferenceSet, estimate_noise
+from hipref.validation import check_choice, check_field_types, check_int, check_range
 
 
 def likelihood_noise(preferences: PreferenceSet, low: float, high: float, resolution: int = 1000) -> float:
@@ -72,3 +80,66 @@ def repeated_pair_noise(preferences: PreferenceSet) -> float:
         return float("nan")
     disagreement = float((lower_chosen * (asked - lower_chosen)).sum() / pairs_of_answers)
     return float((1.0 - np.sqrt(max(0.0, 1.0 - 2.0 * disagreement))) / 2.0)
+
+
+class FlipRate(Protocol):
+    """Where a learner's flip rate e comes from: `rate` of its buffer D (`preferences()`, built only when
+    read), Phi being [low, high]."""
+
+    @property
+    def estimated(self) -> bool:
+        """Whether the rate is estimated from D (the learner keeps a history of its estimates)."""
+        ...
+
+    def rate(self, preferences: Callable[[], PreferenceSet], low: float, high: float) -> float: ...
+
+
+@dataclass(frozen=True)
+class Told:
+    """The flip rate the learner is told: the teacher's true one (co_pesi), or 0 (a learner that trusts
+    every label)."""
+
+    value: float = 0.0
+    """e, in [0, 1]."""
+    estimated = False
+
+    def __post_init__(self) -> None:
+        check_field_types(self)
+        check_range("value", self.value, 0.0, 1.0)
+
+    def rate(self, preferences: Callable[[], PreferenceSet], low: float, high: float) -> float:
+        return self.value
+
+
+@dataclass(frozen=True)
+class Algorithm5:
+    """Algorithm 5's estimate on D (A.9, co_pesi_estimated), a conflict read as `conflict`; with no
+    conflict at all it is 1.0, taken as written."""
+
+    conflict: str = DEFAULT_CONFLICT
+    """One of `hipref.learners.noise_estimation.CONFLICTS`."""
+    estimated = True
+
+    def __post_init__(self) -> None:
+        check_field_types(self)
+        check_choice("conflict", self.conflict, CONFLICTS)
+
+    def rate(self, preferences: Callable[[], PreferenceSet], low: float, high: float) -> float:
+        return estimate_noise(preferences(), self.conflict)
+
+
+@dataclass(frozen=True)
+class Likelihood:
+    """The maximum marginal likelihood flip rate of D (`likelihood_noise`), at most `cap`."""
+
+    cap: float = 0.5
+    """The largest rate given, in [0, 0.5] (the unbiased loss divides by 1 - 2 e, so its learners cap
+    lower)."""
+    estimated = True
+
+    def __post_init__(self) -> None:
+        check_field_types(self)
+        check_range("cap", self.cap, 0.0, 0.5)
+
+    def rate(self, preferences: Callable[[], PreferenceSet], low: float, high: float) -> float:
+        return min(self.cap, likelihood_noise(preferences(), low, high))

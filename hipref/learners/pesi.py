@@ -4,6 +4,11 @@ The learner draws N candidates phi_0..phi_{N-1}, has the low-level policy execut
 trajectory slice tau of one clip and asks which candidate is best; the answer reshapes SI's distribution
 Pr(phi | tau) over the queried candidates by a soft cross-entropy: the preferred candidate's target weight
 is raised by p (the encourage percentage), the others' lowered, from where the model already is.
+
+One learner, `PESILearner`, composed of four parts: the query rule (`PESIConfig.candidate_sampling`), the
+loss (`PESIConfig.loss`, `hipref.learners.losses`), a filter of flipped preferences
+(`hipref.learners.filters`; co-teaching, Algorithm 1, makes it CO-PESI) and the source of its flip rate
+(`hipref.learners.noise_rate`: told, Algorithm 5, likelihood).
 """
 
 from __future__ import annotations
@@ -17,86 +22,25 @@ import numpy as np
 import torch
 
 from hipref.learners.answer_models import AnswerModel
+from hipref.learners.filters import FilterSetting, Unfiltered
+from hipref.learners.losses import PAIR_LOSSES, PR_DOMAINS, SI_LOSSES, log_probs, si_loss
 from hipref.learners.noise_estimation import PreferenceSet
+from hipref.learners.noise_rate import FlipRate, Told
 from hipref.learners.queries import CHOSEN, choose_pair
 from hipref.learners.sysid import SIModel
+from hipref.seeds import integer_seed
 from hipref.teachers.preference import NoLabel, PreferenceQuery, preference_label_vector
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import check_choice, check_field_types, check_int, check_range
 
-SI_LOSSES: tuple[str, ...] = ("soft", "standard")
-"""'soft': Eq. 2 (two candidates) / Eq. 3 (N); 'standard': cross-entropy, the pesi_ce ablation of A.8."""
-
-
-PR_DOMAINS: tuple[str, ...] = ("query", "all")
-"""Over what Pr in Eq. 2/3 is a distribution: the queried candidates, or all of Phi (see `log_probs`)."""
 CANDIDATE_SAMPLING: tuple[str, ...] = ("uniform", "belief", *CHOSEN)
 """How Algorithm 2 draws the queried candidates from Phi (see `PESILearner.ask`): uniformly, from SI's
 belief, or by a query rule of `hipref.learners.queries` on that belief (pairs only)."""
+PESI_FILTER = Unfiltered()
+"""PESI's filter: none, every SI update sees its whole minibatch."""
+TRUSTING = Told(0.0)
+"""The flip rate of a learner that trusts every label."""
 FINE_TUNED: tuple[str, ...] = ("all", "last_layer", "output_bias")
 """Which of SI's parameters preferences fine-tune: every layer, the output layer, or its bias alone."""
-
-
-def log_probs(logits: torch.Tensor, indices: torch.Tensor, pr_domain: str = "query") -> torch.Tensor:
-    """log Pr(phi_i) of the queried candidates (B, N), from SI's logits (B, |Phi|) and the query (B, N).
-
-    'query': SI's distribution renormalised over the queried candidates, as the Bradley-Terry preference
-    model of Christiano et al. (2017) that A.8 sets Eq. 2 against: Pr(phi_i) is the probability that phi_i
-    is the best of the N shown. The weights Pr(phi_i) + p y_i then sum to one and an update only moves mass
-    between the queried candidates. 'all': SI's distribution over all of Phi, the literal Pr(phi in Phi) of
-    section 4; the weights then sum to less than one, and every update also drains the unqueried candidates
-    onto the queried ones, whatever the label.
-    """
-    check_choice("pr_domain", pr_domain, PR_DOMAINS)
-    if pr_domain == "query":
-        return torch.log_softmax(logits.gather(1, indices), dim=1)
-    return torch.log_softmax(logits, dim=1).gather(1, indices)
-
-
-def pesi_loss(log_probs_pair: torch.Tensor, y: torch.Tensor, encourage_percentage: float) -> torch.Tensor:
-    """Eq. 2: soft cross-entropy over a queried pair, averaged over the batch.
-
-    L = -[log Pr(phi_0) (Pr(phi_0) + p y) + log Pr(phi_1) (Pr(phi_1) - p y)]
-
-    log_probs_pair: (B, 2) from `log_probs` (log-probabilities rather than probabilities so a
-    vanishing Pr keeps a usable gradient). y: (B,) in {-1, 1}, 1 meaning phi_0 preferred. The weights
-    Pr + p y are constants (detached): the target is the model's own current belief with p moved from the
-    dispreferred to the preferred candidate. The gradient on the pair's logits is then exactly -p y and
-    p y, so p sets the update size (section 4), and with p = 0 there is no update at all.
-    """
-    if not torch.all((y == 1) | (y == -1)):
-        raise ValueError(f"y must contain only -1 and 1, got {y.tolist()!r}")
-    probs = log_probs_pair.detach().exp()
-    weight_0 = probs[:, 0] + encourage_percentage * y
-    weight_1 = probs[:, 1] - encourage_percentage * y
-    return -(log_probs_pair[:, 0] * weight_0 + log_probs_pair[:, 1] * weight_1).mean()
-
-
-def pesi_loss_n(log_probs_n: torch.Tensor, y_vec: torch.Tensor, encourage_percentage: float) -> torch.Tensor:
-    """Eq. 3: the soft cross-entropy over N queried candidates, averaged over the batch.
-
-    L = -sum_i log Pr(phi_i) (Pr(phi_i) + p y_i),   y_i in {-1/(N-1), 1}, one y_i = 1.
-
-    Our reading of Eq. 3: as printed, the weight is '(sum_{i=1}^{N-1} Pr(phi_i) + p y(phi_i))', an inner sum
-    that reuses the outer index. We read the weight as Pr(phi_i) + p y_i, the per-candidate weight of Eq. 2:
-    with N = 2 and y_vec = (y, -y) it is then exactly Eq. 2, and since the y_i sum to zero the weights
-    still sum to one, p being moved from the N - 1 dispreferred candidates to the preferred one, as in
-    Eq. 2. (Summing all N probabilities into every weight would not reduce to Eq. 2.)
-
-    log_probs_n: (B, N) from `log_probs`; y_vec: (B, N) label vectors.
-    """
-    weights = log_probs_n.detach().exp() + encourage_percentage * y_vec
-    return -(log_probs_n * weights).sum(dim=1).mean()
-
-
-def standard_ce_loss(log_probs_n: torch.Tensor, y_vec: torch.Tensor) -> torch.Tensor:
-    """The pesi_ce ablation (A.8): cross-entropy with the preferred candidate as the positive class.
-
-    log_probs_n: (B, N) from `log_probs`, so this is the Bradley-Terry loss of Christiano et al.
-    (2017) that A.8 contrasts with: L = -log Pr(preferred). Unlike Eq. 2 it pushes toward certainty in the
-    preferred candidate however sure the model already is.
-    """
-    preferred = y_vec.argmax(dim=1, keepdim=True)
-    return -log_probs_n.gather(1, preferred).mean()
 
 
 @dataclass(frozen=True)
@@ -104,7 +48,11 @@ class PESIConfig:
     """Algorithm 2: preference fine-tuning of SI."""
 
     loss: str = "soft"
-    """'soft' (Eq. 2 / Eq. 3, the method 'pesi') or 'standard' (cross-entropy, the ablation 'pesi_ce')."""
+    """One of `hipref.learners.losses.SI_LOSSES`: 'soft' (Eq. 2 / Eq. 3, the method 'pesi'), 'standard'
+    (cross-entropy, the ablation 'pesi_ce'), 'smoothed' or 'unbiased' (pairs only)."""
+    smoothing: float = 0.1
+    """eps of the 'smoothed' loss, the weight of the reversed label, in [0, 0.5) (conservative DPO commonly
+    uses 0.1)."""
     encourage_percentage: float = 0.25
     """p of Eq. 2, how far one preference moves the target toward the preferred candidate (A.7: 0.25)."""
     learning_rate: float = 1e-2
@@ -129,9 +77,16 @@ class PESIConfig:
     fine_tuned: str = "all"
     """Which parameters of SI the preferences update: 'all' (Algorithm 2 'update SI'), 'last_layer' or
     'output_bias'."""
+    start_size: int = 16
+    """s: a filter, and an estimate of the flip rate, start once |D| > s (Alg. 1 l.5); before that SI is
+    updated on unfiltered batches as PESI does. Not given in the paper; by default a full batch must be
+    available."""
 
     def __post_init__(self) -> None:
+        check_field_types(self)
         check_choice("loss", self.loss, SI_LOSSES)
+        check_range("smoothing", self.smoothing, 0.0, 0.5 - 1e-9)
+        check_int("start_size", self.start_size, 0)
         check_range("encourage_percentage", self.encourage_percentage, 0.0, 1.0)
         check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
         check_int("batch_size", self.batch_size, 1)
@@ -167,16 +122,31 @@ class PESILearner:
     """Algorithm 2 through ask/tell: ask for a preference on a trajectory slice, be told, update SI.
 
     The learner fine-tunes its own copy of `model`, so one pretrained model can seed several methods.
-    Its candidate set Phi is the model's.
+    Its candidate set Phi is the model's. Each received preference is learned by the `filter`
+    (`hipref.learners.filters.Unfiltered` by default: PESI) at the flip rate `flip_rate` gives once
+    |D| > s (0 before; `TRUSTING` by default, a learner that trusts every label); the estimated rates are
+    kept in `noise_history`.
     """
 
-    def __init__(self, model: SIModel, config: PESIConfig | None = None, seed: int = 0) -> None:
+    def __init__(
+        self,
+        model: SIModel,
+        config: PESIConfig | None = None,
+        seed: int = 0,
+        filter: FilterSetting = PESI_FILTER,
+        flip_rate: FlipRate = TRUSTING,
+    ) -> None:
         self.config = config if config is not None else PESIConfig()
         try:
             seed = operator.index(seed)  # any integer type; a float seed is a mistake
         except TypeError:
             raise ValueError(f"seed must be an integer >= 0, got {seed!r}") from None
         check_int("seed", seed, 0)
+        if (filter.pairs_only or self.config.loss in PAIR_LOSSES) and self.config.n_candidates != 2:
+            raise ValueError(
+                f"n_candidates must be 2 for a filter of pairs or the {self.config.loss!r} loss, "
+                f"got {self.config.n_candidates}"
+            )
         self.model = copy.deepcopy(model)
         self.candidates = model.candidates
         if self.config.n_candidates > self.candidates.size:
@@ -201,6 +171,9 @@ class PESILearner:
         self._last_slice: np.ndarray | None = None
         # Answers without a label (SKIP, EQUAL), which D does not hold.
         self.unlabelled = 0
+        self.flip_rate = flip_rate
+        self.noise_history: list[float] = []
+        self.filter = filter.start(self)
 
     def __len__(self) -> int:
         """|D|, the number of preferences received."""
@@ -214,10 +187,32 @@ class PESILearner:
         labels = np.stack(self._labels)[:, 0]
         return PreferenceSet(first=values[indices[:, 0]], second=values[indices[:, 1]], label=labels)
 
+    @property
+    def start_size(self) -> int:
+        """s, the size of D after which the filter and the flip-rate estimate start."""
+        return self.config.start_size
+
+    def next_seed(self) -> int:
+        """A fresh seed of the learner's own stream for torch initialisations (CO-PESI's classifiers)."""
+        return integer_seed(self._torch_seeds.spawn(1)[0])
+
     def filter_precision_recall(self, flipped: Sequence[bool] | np.ndarray) -> tuple[float, float] | None:
         """The precision and recall of the learner's filter of flipped preferences against the teacher's
-        record `flipped`; None: PESI filters nothing (learners with a filter override it)."""
-        return None
+        record `flipped`; None when it filters nothing (PESI)."""
+        return self.filter.precision_recall(flipped)
+
+    def estimates(self, slices: np.ndarray) -> np.ndarray:
+        """SI's E_Pr[phi] on each of `slices` (one per row), as the evaluation reads a learner."""
+        return self.model.predict(slices)
+
+    def running_estimate(self, evaluation: np.ndarray) -> float:
+        """What the learner gives the controller during a teaching session: SI's mean estimate on the
+        session's probing slices `evaluation` (SI's multi-slice estimate)."""
+        return float(self.model.predict(evaluation).mean())
+
+    def mode(self, features: np.ndarray) -> float:
+        """SI's most probable candidate on one slice."""
+        return float(self.model.predict_mode(features))
 
     def _check_features(self, features: np.ndarray) -> np.ndarray:
         features = np.asarray(features, dtype=np.float64)
@@ -306,31 +301,40 @@ class PESILearner:
         self._learn()
 
     def _learn(self) -> None:
-        # Alg. 2 'update SI by Eqn. 2', here on a minibatch from D so one answer is not all a step sees.
-        self._update_si(self._sample_batch())
+        # The flip rate e of this preference's learning: told, or estimated from D once |D| > s.
+        rate = 0.0
+        if len(self) > self.config.start_size:
+            rate = self.flip_rate.rate(self.buffer_preferences, self.candidates.low, self.candidates.high)
+            if self.flip_rate.estimated:
+                self.noise_history.append(rate)
+        self.filter.learn(rate)
 
-    def _sample_batch(self) -> np.ndarray:
+    def sample_batch(self) -> np.ndarray:
+        """A minibatch of D, at most `batch_size` distinct entries, as buffer indices."""
         size = min(self.config.batch_size, len(self))
         return self._batch_rng.choice(len(self), size=size, replace=False)
 
-    def _batch_tensors(self, batch: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def batch_tensors(self, batch: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Features (B, input_dim), candidate indices (B, N) and label vectors (B, N) of buffer entries."""
         features = torch.as_tensor(np.stack([self._features[i] for i in batch]), dtype=torch.float32)
         indices = torch.as_tensor(np.stack([self._indices[i] for i in batch]), dtype=torch.long)
         labels = torch.as_tensor(np.stack([self._labels[i] for i in batch]), dtype=torch.float32)
         return features, indices, labels
 
-    def _update_si(self, batch: np.ndarray) -> float:
-        """One gradient step of SI on the buffer entries `batch` with the configured loss; returns it."""
-        features, indices, labels = self._batch_tensors(batch)
-        queried = log_probs(self.model(features), indices, self.config.pr_domain)
-        if self.config.loss == "standard":
-            loss = standard_ce_loss(queried, labels)  # A.8 ablation
-        elif self.config.n_candidates == 2:
-            loss = pesi_loss(queried, labels[:, 0], self.config.encourage_percentage)  # Eq. 2
-        else:
-            loss = pesi_loss_n(queried, labels, self.config.encourage_percentage)  # Eq. 3
+    def queried(self, batch: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        """SI's log Pr over each entry's queried candidates (B, N) and its label vector (B, N)."""
+        features, indices, labels = self.batch_tensors(batch)
+        return log_probs(self.model(features), indices, self.config.pr_domain), labels
+
+    def si_step(self, queried: torch.Tensor, labels: torch.Tensor, rate: float) -> float:
+        """One gradient step of SI by the configured loss of `queried` and `labels`; returns the loss."""
+        c = self.config
+        loss = si_loss(c.loss, queried, labels, c.encourage_percentage, c.smoothing, rate)
         self.optimiser.zero_grad()
         loss.backward()
         self.optimiser.step()
         return loss.item()
+
+    def update_si(self, batch: np.ndarray, rate: float) -> float:
+        """One gradient step of SI on the buffer entries `batch` with the configured loss; returns it."""
+        return self.si_step(*self.queried(batch), rate)

@@ -77,6 +77,4 @@ def evaluation_slices(config: TeachConfig, task: Task) -> np.ndarray:
 def running_estimate(learner: Learner, evaluation: np.ndarray) -> float:
     """What the session's learner would give the controller: the Bayesian learner's posterior median, or
     PESI's SI read on the session's probing slices."""
-    if isinstance(learner, BayesLearner):
-        return learner.estimate()
-    return float(learner.model.predict(evaluation).mean())
+    return learner.running_estimate(evaluation)

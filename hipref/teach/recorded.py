@@ -20,10 +20,10 @@ import numpy as np
 
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
-from hipref.learners.coteaching import CoPESIConfig, EstimatedNoiseCoPESILearner
+from hipref.learners.coteaching import CoTeaching
 from hipref.learners.noise_estimation import CONFLICTS, PreferenceSet, estimate_noise
-from hipref.learners.noise_rate import likelihood_noise, repeated_pair_noise
-from hipref.learners.pesi import PESILearner
+from hipref.learners.noise_rate import Algorithm5, likelihood_noise, repeated_pair_noise
+from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
 from hipref.seeds import integer_seed
 from hipref.teach.config import TeachConfig
@@ -43,13 +43,10 @@ from hipref.validation import check_choice
 def estimated_noise_learner(config: TeachConfig, model: SIModel) -> Learner:
     """CO-PESI with Algorithm 5's noise level (co_pesi_estimated), seeded by the session."""
     spec = domain_spec(config.domain)
-    coteaching = CoPESIConfig(
-        batch_size=spec.batch_size,
-        history=config.data.history,
-        start_size=spec.batch_size,
-        refresh_frequency=spec.refresh_frequency,
-    )
-    return EstimatedNoiseCoPESILearner(model, coteaching, integer_seed(session_streams(config).learner))
+    pesi = PESIConfig(batch_size=spec.batch_size, history=config.data.history, start_size=spec.batch_size)
+    coteaching = CoTeaching(refresh_frequency=spec.refresh_frequency)
+    seed = integer_seed(session_streams(config).learner)
+    return PESILearner(model, pesi, seed, coteaching, Algorithm5())
 
 
 REPLAYERS: dict[str, Callable[[TeachConfig, SIModel], Learner]] = {
@@ -95,7 +92,8 @@ def replay(config: TeachConfig, records: Sequence[dict[str, Any]], method: str =
     for record in records:
         if record.get("catch", False):  # catch trials are not told (`hipref.teach.preferences`)
             continue
-        features = np.array(record["clip"]["tau"]) if isinstance(learner, PESILearner) else np.zeros(0)
+        # The slice the person's clip was cut from; the Bayesian learner reads only the candidates.
+        features = np.array(record["clip"]["tau"])
         tell(learner, PreferenceQuery(tuple(record["candidates"]), features=features), record["label"])
     return learner
 

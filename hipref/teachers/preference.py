@@ -130,7 +130,7 @@ class ScriptedPreferenceTeacher:
     `flipped[i]` records whether the i-th answer was wrong against the oracle (for the paper's teacher:
     whether it was flipped) and `labelled[i]` whether it carried a label at all; `wrong_labels` lists the
     flags of the labelled answers alone, one per preference a learner stores. That is ground truth only a
-    scripted teacher knows, kept to score a noise filter against (`CoPESILearner.filter_precision_recall`)
+    scripted teacher knows, kept to score a noise filter against (`PESILearner.filter_precision_recall`)
     and to measure the true noise; it is never shown to the learner, which is told the label alone.
     """
 
