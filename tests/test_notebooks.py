@@ -132,7 +132,10 @@ def test_every_parameter_has_a_help_text(notebook: Path) -> None:
 
 
 @pytest.mark.parametrize("notebook", NOTEBOOKS, ids=lambda p: p.stem)
-def test_quick_profile_equals_the_defaults_and_full_names_only_parameters(notebook: Path) -> None:
+def test_quick_profile_sets_only_what_differs_from_the_defaults_and_full_names_only_parameters(
+    notebook: Path,
+) -> None:
+    # papermill keeps the parameters cell's default for a parameter the profile leaves out.
     names = defaults(notebook)
     quick = yaml.safe_load((ROOT / "params" / "quick" / f"{notebook.stem}.yaml").read_text()) or {}
     full = yaml.safe_load((ROOT / "params" / "full" / f"{notebook.stem}.yaml").read_text()) or {}
@@ -142,7 +145,7 @@ def test_quick_profile_equals_the_defaults_and_full_names_only_parameters(notebo
         expected = names[name]
         if isinstance(expected, tuple):
             expected = list(expected)
-        assert value == expected, f"{notebook.stem}: quick profile {name}={value!r}, default {names[name]!r}"
+        assert value != expected, f"{notebook.stem}: quick profile repeats the default {name}={value!r}"
 
 
 @pytest.mark.parametrize("notebook", NOTEBOOKS, ids=lambda p: p.stem)
@@ -167,9 +170,7 @@ def test_parameters_agree_with_the_config_and_the_quick_profile(notebook: Path) 
     sources = parameter_sources(notebook)
     types = declared_types(*sources)
     config_default = config_defaults(*sources)
-    quick = yaml.safe_load((ROOT / "params" / "quick" / f"{notebook.stem}.yaml").read_text()) or {}
     parameters = typed_parameters(notebook)
-    assert set(quick) == set(parameters), f"params/quick/{notebook.stem}.yaml must set every parameter"
     for name, (annotation, default) in parameters.items():
         assert name in types, f"{notebook.name}: parameter {name} sets no config field"
         expected = type_text(notebook_type(types[name]))
@@ -181,9 +182,6 @@ def test_parameters_agree_with_the_config_and_the_quick_profile(notebook: Path) 
             from_config = list(from_config)
         assert default == from_config, (
             f"{notebook.name}: {name} defaults to {default!r}, config {from_config!r}"
-        )
-        assert quick[name] == default, (
-            f"{notebook.stem}: quick profile {name}={quick[name]!r}, default {default!r}"
         )
 
 
