@@ -197,13 +197,15 @@ def _observer(
 ) -> Callable[[int], Observe]:
     """Episode i's execution of pi^l: with uniform candidates, the clips every run of the environment
     shares (`learning_clips`: the Bayesian learner draws uniform queries as PESI does, so the same clips),
-    replayed; otherwise a fresh layout from the run's own stream."""
+    replayed; otherwise (or without clips) a fresh layout from the run's own stream, executed."""
     h = cell.data.history
+    clips = None
     if cell.fine_tuning.pesi.candidate_sampling == "uniform":
         learning = LearningSpec(
             cell.domain, cell.ground_truth, cell.seed, cell.n_candidates, h, cell.data.low_level.key
         )
         clips = learning_clips(task, learning, cell.episodes, model)
+    if clips is not None:
         return lambda i: clips[i].replayer(h)
     learn_rng = np.random.default_rng(learn_seq)
     return lambda i: observer(task, cell.ground_truth, task.sample_layout(learn_rng), h)
