@@ -171,6 +171,11 @@ def test_an_answers_run_is_deterministic_and_reaches_the_truth_with_perfect_answ
         (dict(checkpoints=(5, 66)), "checkpoints"),
         (dict(checkpoints=(0, 20, 10, 66)), "checkpoints"),
         (dict(domains=()), "domains"),
+        (dict(held_out_heights=(0.62,)), "held_out_heights"),
+        (dict(held_out_masses=()), "held_out_masses"),
+        (dict(held_out_seeds=(0,)), "held_out_seeds"),
+        (dict(held_out_seeds=(300, 300)), "held_out_seeds"),
+        (dict(held_out_episodes=0), "held_out_episodes"),
     ],
 )
 def test_the_config_refuses_bad_settings_by_name(change: dict[str, object], match: str) -> None:
@@ -209,3 +214,26 @@ def test_chosen_queries_and_blind_learners_run_only_where_the_config_says() -> N
     assert {t for e, r, t in told if e == 0.4} == {"model"}
     assert {t for e, r, t in told if e == 0.0 and r == "information_gain"} == {"model", "kind", "nothing"}
     assert {c.episodes for c in config.answers_cells()} == {66}
+
+
+def test_the_held_out_replication_runs_the_claims_settings_on_its_own_environments_only() -> None:
+    config = AnswersConfig(
+        seeds=2,
+        held_out_heights=(0.57, 0.83),
+        held_out_masses=(9.5,),
+        held_out_seeds=(7, 9),
+        held_out_episodes=12,
+    )
+    cells = config.held_out_cells()
+    study = {(c.domain, c.ground_truth, c.seed) for c in config.answers_cells()}
+    held = {(c.domain, c.ground_truth, c.seed) for c in cells}
+    assert not study & held
+    assert held == {("wiping", t, s) for t in (0.57, 0.83) for s in (7, 9)} | {
+        ("pushing", 9.5, s) for s in (7, 9)
+    }
+    assert {(c.teacher, c.noise, c.query_rule, c.told) for c in cells} == {
+        ("mistake", e, "information_gain", t)
+        for e in config.blind_noise_levels
+        for t in ("model", "kind", "nothing")
+    }
+    assert {c.episodes for c in cells} == {12}

@@ -190,6 +190,29 @@ def test_marginal_likelihood_prefers_the_teacher_that_answered() -> None:
     assert max(kinds, key=kinds.__getitem__) == "skip"
 
 
+def test_the_estimate_is_read_from_the_most_probable_kind_of_teacher() -> None:
+    # Two kinds: a flip at 20 % (two rates) and the distance teacher; answers a flip explains better.
+    models = (AnswerModel("flip", flip=0.1), AnswerModel("flip", flip=0.3), AnswerModel("distance"))
+    posterior = PreferencePosterior(SMALL, models)
+    for pair, column in [
+        ((0.0, 1.0), 0),
+        ((0.25, 0.5), 0),
+        ((0.0, 0.25), 1),
+        ((0.0, 0.5), 0),
+        ((0.5, 0.75), 1),
+    ]:
+        posterior.update(pair, column)
+    joint = posterior.joint()
+    kinds = posterior.model_posterior()
+    best = max(kinds, key=kinds.__getitem__)
+    rows = [i for i, m in enumerate(models) if m.kind == best]
+    np.testing.assert_allclose(posterior.kind_phi(), joint[rows].sum(axis=0) / joint[rows].sum())
+    assert not np.allclose(posterior.kind_phi(), posterior.phi())  # not the average over every kind
+    told_one_kind = PreferencePosterior(SMALL, models[:2])
+    told_one_kind.update((0.0, 1.0), 0)
+    np.testing.assert_allclose(told_one_kind.kind_phi(), told_one_kind.phi())
+
+
 def test_the_filter_flags_the_flipped_answers() -> None:
     # Uniform pairs: most are far from the truth, where a flip contradicts the others plainly.
     learner = BayesLearner(GRID, BayesConfig(), seed=0)

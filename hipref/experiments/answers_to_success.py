@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from hipref.experiments.domains import DOMAINS, domain_spec
+from hipref.experiments.domains import DOMAINS, domain_spec, truth_grids
 from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_clips import run_streams
 from hipref.experiments.si_methods import BAYES_METHODS, COTEACHING_METHODS, METHODS
@@ -52,6 +52,13 @@ assert set(TASK_METHODS) <= set(METHODS)
 
 CONSISTENT = 0.9
 """'Reaches one grid step' means: in at least this share of the environments."""
+
+STEP_BOUNDS: dict[float, int] = {0.0: 10, 0.2: 30}
+"""The claims' most answers to one step with chosen queries, per flip rate of the paper's teacher (the
+learner told its kind, not its flip rate)."""
+
+MODEL_CHOICE_BOUND = 1.25
+"""The claims' most answers (or final error) of the learner told nothing against the one told the model."""
 
 
 def shannon_floor(candidates: int, flip: float) -> float:
@@ -184,6 +191,16 @@ class AnswersConfig(SIStudy):
     task_seeds: int = 1
     """Seeds per true parameter of the task part (its environments are the first of the answers part's):
     the physics costs a hundred times what the answers alone do."""
+    held_out_heights: tuple[float, ...] = (0.68,)
+    """True desk heights in m of the held-out wiping environments, each in [0.5, 0.9] and none of `heights`:
+    the answers part's headline claims replicated on truths the study does not tune on (full profile: 5)."""
+    held_out_masses: tuple[float, ...] = (14.75,)
+    """True cube masses in kg of the held-out pushing environments, each in [8, 20] and none of `masses`
+    (full profile: 5)."""
+    held_out_seeds: tuple[int, ...] = (300,)
+    """Seeds of the held-out environments, none below `seeds` (the grid's are 0 .. seeds - 1)."""
+    held_out_episodes: int = 40
+    """Answers per held-out run, at least 1: the replicated claims read at most 30 (`STEP_BOUNDS`)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -212,6 +229,37 @@ class AnswersConfig(SIStudy):
             )
         SIRun("wiping", "pesi", 0.7, episodes=self.episodes, checkpoints=self.checkpoints)
         check_int("task_seeds", self.task_seeds, 1, self.seeds)
+        grids = truth_grids(self)
+        for domain, values in self.held_out_grids().items():
+            name = f"held_out_{DOMAINS[domain].truths}"
+            _check_set(name, values, None)
+            phi = DOMAINS[domain].candidates
+            for value in values:
+                check_range(name, value, phi.low, phi.high)
+                if value in grids[domain]:
+                    raise ValueError(f"{name} must hold truths outside the grid, got {value} (in the grid)")
+        _check_set("held_out_seeds", self.held_out_seeds, None)
+        for seed in self.held_out_seeds:
+            check_int("held_out_seeds", seed, self.seeds)
+        check_int("held_out_episodes", self.held_out_episodes, 1)
+
+    def held_out_grids(self) -> dict[str, tuple[float, ...]]:
+        """Each domain's held-out true parameters (`held_out_heights`, `held_out_masses`)."""
+        return {domain: getattr(self, f"held_out_{spec.truths}") for domain, spec in DOMAINS.items()}
+
+    def held_out_cells(self) -> list[AnswersCell]:
+        """The held-out replication: the paper's teacher at each of `blind_noise_levels` under information
+        gain, told its model, its kind or nothing, on the held-out truths x seeds."""
+        return [
+            AnswersCell(
+                domain, truth, seed, "mistake", noise, "information_gain", told, self.held_out_episodes
+            )
+            for domain in self.domains
+            for noise in self.blind_noise_levels
+            for told in TOLD
+            for truth in self.held_out_grids()[domain]
+            for seed in self.held_out_seeds
+        ]
 
     def task_environments(self, domain: str) -> list[tuple[float, int]]:
         """The task part's (ground truth, seed): the grid crossed with the first `task_seeds` seeds."""
@@ -284,11 +332,14 @@ def run_cell(cell: SIRun | AnswersCell) -> pd.DataFrame:
 
 
 def run(config: AnswersConfig, **sweep: Any) -> pd.DataFrame:
-    """Both parts' tidy rows, with the columns `part` ('task' or 'answers'), teacher, query_rule and
-    told on every row. One sweep, the task part's runs first: they take the longest."""
+    """Both parts' tidy rows, with the columns `part` ('task' or 'answers'), teacher, query_rule, told and
+    `grid` ('study', or 'held_out' for the held-out replication's answers) on every row. One sweep, the
+    task part's runs first: they take the longest."""
     config.pretrain(config.domains, **sweep)
-    task, answers = config.task_cells(), config.answers_cells()
-    rows = run_sweep(run_cell, [*task, *answers], desc="answers to success", **sweep)
+    task, answers, held_out = config.task_cells(), config.answers_cells(), config.held_out_cells()
+    rows = run_sweep(run_cell, [*task, *answers, *held_out], desc="answers to success", **sweep)
+    held_out_seeds = set(config.held_out_seeds)
+    rows["grid"] = np.where(rows["seed"].isin(held_out_seeds), "held_out", "study")
     rows["part"] = rows["part"].fillna("task")
     rows["teacher"] = rows["teacher"].fillna("mistake")
     rows["query_rule"] = rows["query_rule"].fillna("uniform")
