@@ -22,12 +22,20 @@ dispatch elsewhere: its float64 sin, cos, exp and log have AVX-512 versions that
 and its OpenBLAS runs AVX-512 kernels for larger products and solves. One such bit in the direction of a
 push moved where a few pushes came to rest by one control period, and with it the slice SI was evaluated
 on: 30 of the 10,020 values of notebooks 02 and 03 computed on an AVX-512 machine differed from this
-study's. So the package takes sines and cosines from `math` (the C library's, not dispatched), and the
+study's. So the package takes sines and cosines from `math`, the C library's, and the
 Makefile pins numpy and OpenBLAS to their AVX2 kernels for every process it starts
 (`NPY_DISABLE_CPU_FEATURES`, `OPENBLAS_CORETYPE`): both read their setting when numpy is loaded, which a
 notebook does before it imports hipref, so they cannot be pinned here (pinned in the sweep's workers only,
 a run would differ between a pool and the notebook's own process). tests/test_cross_cpu.py computes its
 reference with them at AVX2 too, so a row of its cells that comes to depend on them is caught.
+
+The C library's sine and cosine are dispatched too, and cannot be pinned from inside a process: glibc picks
+its FMA version on a CPU with FMA and AVX2 (every machine of the study's kind) and its SSE2 version
+elsewhere, and the two differ in the last bit of about 1 in 1,500 results. MuJoCo and `math` both call them.
+Run with the FMA path masked (`GLIBC_TUNABLES=glibc.cpu.hwcaps=-AVX2,-FMA`), Algorithm 4's trajectories
+differed in the last bits, its pretrained SI by at most 3e-6 per weight, and 330-episode runs' errors by at
+most 4e-8 m and 3e-6 kg (successes equal). So a sweep also warns when this process's sine and cosine do not
+give the bits of the committed rows' (`LIBM_PROBE`).
 
 One more path depends on the processor however the libraries are pinned: MKL's float32 square root, which
 torch's default Adam update calls; every Adam of the study runs fused instead (`adam`).
@@ -46,6 +54,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import os
 import sys
 import warnings
@@ -81,9 +90,30 @@ def pin_cpu_dispatch() -> None:
         )
 
 
+LIBM_PROBE: tuple[tuple[str, str, str], ...] = (
+    ("sin", "-0x1.8f8a11bfd44f3p+5", "0x1.45183a5d2ad8dp-2"),
+    ("sin", "-0x1.b4fdf3b645a40p-1", "-0x1.81d5fd76bfdf8p-1"),
+    ("sin", "0x1.7383ece2a5348p+5", "0x1.43b839f75b902p-1"),
+    ("cos", "-0x1.d5565b7a32847p+4", "-0x1.f5467c09ab2cdp-2"),
+    ("cos", "-0x1.2504c756b2dc0p+2", "-0x1.118e2588cc486p-3"),
+    ("cos", "0x1.6ae5604189374p+5", "0x1.84fb5f7d00c00p-3"),
+)
+"""(function, argument, result) in hexadecimal: results of glibc's FMA sine and cosine, the path the committed
+rows were computed on, whose last bit its SSE2 path gives otherwise."""
+
+
+def libm_matches() -> bool:
+    """Whether the C library's sine and cosine in this process give `LIBM_PROBE`'s bits."""
+    return all(
+        getattr(math, function)(float.fromhex(argument)) == float.fromhex(result)
+        for function, argument, result in LIBM_PROBE
+    )
+
+
 def overrides(environ: Mapping[str, str], pins: Path | None) -> list[str]:
     """What in this process differs from what the committed rows were computed with: a `PINNED` setting
-    the environment chose otherwise, and an installed version of a package that differs from its pin in
+    the environment chose otherwise, the C library's sine and cosine (`libm_matches`), and an installed
+    version of a package that differs from its pin in
     `pins` (the checkout's environment.txt; None outside a checkout)."""
     from importlib import metadata
 
@@ -92,6 +122,11 @@ def overrides(environ: Mapping[str, str], pins: Path | None) -> list[str]:
         for name, value in PINNED.items()
         if environ.get(name, value).lower() != value.lower()
     ]
+    if not libm_matches():
+        found.append(
+            "the C library's sine and cosine (another path than glibc's FMA one, e.g. a CPU without FMA and "
+            "AVX2, GLIBC_TUNABLES masking them, or another C library)"
+        )
     lines = pins.read_text().splitlines() if pins is not None and pins.is_file() else []
     for name, _, version in (line.partition("==") for line in lines if "==" in line and line[0] != "#"):
         try:

@@ -3,6 +3,8 @@ rows may differ from the committed ones."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 
@@ -44,3 +46,21 @@ def test_a_sweep_warns_once_when_the_dispatch_pin_is_overridden(
             run_sweep(toy_cell, [ToyCell(seed=1)], cache_dir=False, workers=1)  # once per process
     finally:
         numerics.warn_overrides.cache_clear()
+
+
+def test_the_c_librarys_other_sine_path_is_named() -> None:
+    """glibc's SSE2 sine and cosine (what a CPU without FMA and AVX2 runs) give other last bits than the FMA
+    ones the committed rows were computed with, and the check says so; this machine's own path matches."""
+    probe = "from hipref import numerics; print(numerics.libm_matches())"
+    masked = {"GLIBC_TUNABLES": "glibc.cpu.hwcaps=-AVX2,-FMA"}
+    answers = [
+        subprocess.run(
+            [sys.executable, "-c", probe],
+            env={"PATH": "/usr/bin:/bin", **extra},
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        for extra in ({}, masked)
+    ]
+    assert answers == ["True", "False"]
