@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from hipref import verdicts
-from hipref.experiments.answers_to_success import CONSISTENT, told_against_chosen
+from hipref.experiments.answers_tables import CONSISTENT, told_against_chosen
 from hipref.experiments.conditioning import TOLERANCE, conditioning
 from hipref.experiments.domains import DOMAINS
 from hipref.experiments.si_pretraining import PAPER_A7

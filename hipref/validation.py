@@ -42,11 +42,12 @@ def check_field_types(obj: Any) -> None:
             )
 
 
-def check_grids(config: Any) -> None:
+def check_grids(config: Any, sequences: tuple[str, ...] = ()) -> None:
     """Raise ValueError naming the field unless every `tuple[X, ...]` field of the dataclass `config` holds
     a tuple or list (not a scalar or a string, whose characters would be taken for its items) of distinct
     items: a repeated value would run the same cells twice and fail only when their rows are combined;
-    and every scalar field a value of its annotated kind (`check_field_types`)."""
+    and every scalar field a value of its annotated kind (`check_field_types`). The fields named in
+    `sequences` are ordered values that may repeat (a network's layer widths), not grids of cells."""
     check_field_types(config)
     hints = typing.get_type_hints(type(config))
     for field in dataclasses.fields(config):
@@ -57,7 +58,7 @@ def check_grids(config: Any) -> None:
         if not isinstance(value, tuple | list):
             raise ValueError(f"{field.name} must be a list or tuple of values, got {value!r}")
         repeated = sorted({repr(v) for v in value if list(value).count(v) > 1})
-        if repeated:
+        if repeated and field.name not in sequences:
             raise ValueError(
                 f"{field.name} must not repeat a value, got {value!r} ({', '.join(repeated)} twice)"
             )

@@ -8,15 +8,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from hipref.experiments.answers_tables import (
+    answers_to_step,
+    efficiency,
+    shannon_floor,
+    told_against_chosen,
+)
 from hipref.experiments.answers_to_success import (
     AnswersCell,
     AnswersConfig,
     answer_counts,
-    answers_to_step,
-    efficiency,
     run_answers,
-    shannon_floor,
-    told_against_chosen,
 )
 from hipref.experiments.si_run import FineTuning, SIRun
 from hipref.learners.pesi import PESIConfig

@@ -259,9 +259,9 @@ def test_the_perturbation_is_smooth_with_the_spread_asked() -> None:
         (lambda: ImitationConfig(iterations=20, snapshots=(30,)), r"snapshots must be an integer \[10, 20\]"),
         (lambda: ImitationConfig(iterations=20, snapshots=(5,)), r"snapshots must be an integer \[10, 20\]"),
         (lambda: LearnedControllerConfig(iterations=30, snapshots=(30,)), r"snapshots must be .* \[10, 29\]"),
-        (lambda: LearnedControllerConfig(snapshots=(15, 15)), "snapshots must be distinct"),
+        (lambda: LearnedControllerConfig(snapshots=(15, 15)), "snapshots must not repeat a value"),
         (lambda: LearnedControllerConfig(height_errors=(-0.05, 0.05)), "height_errors must hold 0.0"),
-        (lambda: LearnedControllerConfig(mass_errors=(0.0, 4.0, 4.0)), "mass_errors must be distinct"),
+        (lambda: LearnedControllerConfig(mass_errors=(0.0, 4.0, 4.0)), "mass_errors must not repeat a value"),
     ],
 )
 def test_bad_settings_are_refused_naming_the_parameter(make, message: str) -> None:

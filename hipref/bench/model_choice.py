@@ -20,12 +20,14 @@ import time
 import pandas as pd
 from scipy.stats import norm
 
-from hipref.experiments.answers_to_success import (
+from hipref.experiments.answers_tables import (
     CONSISTENT,
-    AnswersCell,
     answers_to_step,
-    run_answers,
     told_against_chosen,
+)
+from hipref.experiments.answers_to_success import (
+    AnswersCell,
+    run_answers,
 )
 from hipref.experiments.domains import domain_spec
 from hipref.teachers.models import TeacherModel, picture_floor

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from hipref.experiments.domains import DOMAINS, domain_spec, truth_grids
 from hipref.experiments.si_methods import COTEACHING_METHODS, LEARNING_METHODS
@@ -24,6 +24,9 @@ class SIStudy:
 
     Every method of a study meets the same environments (truth, seed) and the same evaluation episodes,
     so methods are compared as paired differences (`hipref.verdicts`)."""
+
+    SEQUENCES: ClassVar[tuple[str, ...]] = ()
+    """Tuple fields that are ordered values which may repeat, not grids of cells (`check_grids`)."""
 
     heights: tuple[float, ...] = (0.6, 0.8)
     """True desk heights in m of the wiping environments, each in [0.5, 0.9] (full profile: 5, evenly)."""
@@ -51,7 +54,7 @@ class SIStudy:
 
     def __post_init__(self) -> None:
         # Types, and every grid a list of distinct values, for every study built on this base.
-        check_grids(self)
+        check_grids(self, self.SEQUENCES)
         for domain, values in truth_grids(self).items():
             name, candidates = DOMAINS[domain].truths, DOMAINS[domain].candidates
             if not values:

@@ -1,0 +1,109 @@
+"""Notebook 12's tables read from its answers part: the answers each setting needs to reach one grid step
+of Phi (`answers_to_step`) beside the Shannon floor (`shannon_floor`), PESI's information efficiency
+(`efficiency`) and what not being told the teacher's model costs (`told_against_chosen`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from hipref.experiments.domains import domain_spec
+from hipref.learners.answer_models import TOLD
+from hipref.validation import check_int, check_range
+
+CONSISTENT = 0.9
+"""'Reaches one grid step' means: in at least this share of the environments."""
+
+
+def shannon_floor(candidates: int, flip: float) -> float:
+    """log2(K) / (1 - h(e)): the fewest answers, each wrong with probability e, that can single out one of K
+    candidates (each answer carries at most the capacity 1 - h(e) bits of a binary symmetric channel)."""
+    check_int("candidates", candidates, 2)
+    check_range("flip", flip, 0.0, 0.5 - 1e-9)
+    entropy = 0.0 if flip == 0 else -flip * math.log2(flip) - (1 - flip) * math.log2(1 - flip)
+    return math.log2(candidates) / (1.0 - entropy)
+
+
+SETTING = ["domain", "teacher", "noise", "query_rule", "told"]
+"""What one curve of the answers part is the curve of."""
+
+
+def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFrame:
+    """Per setting of the answers part, the answers after which the error is within one step of Phi (1 cm,
+    0.25 kg) in at least `share` of the environments and stays so up to the last answer (NaN if never),
+    beside the Shannon floor for the paper's teacher (`shannon_floor`, K = |Phi|, e its flip rate) and
+    their ratio."""
+    errors = rows[(rows["part"] == "answers") & (rows["metric"] == "param_error")]
+    out = []
+    for setting, group in errors.groupby(SETTING, sort=False):
+        domain, teacher, noise = setting[0], setting[1], float(setting[2])
+        phi = domain_spec(str(domain)).candidates
+        wide = group.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
+        within = (wide <= phi.resolution * (1 + 1e-9)).mean(axis=0)
+        failing = np.flatnonzero(within.to_numpy() < share)
+        counts = within.index.to_numpy()
+        first_for_good = failing[-1] + 1 if failing.size else 0  # after the last count that falls short
+        reached = counts[first_for_good] if first_for_good < counts.size else np.nan
+        floor = shannon_floor(phi.size, noise) if teacher == "mistake" else np.nan
+        out.append((*setting, len(wide), float(reached), floor, float(reached) / floor))
+    return pd.DataFrame(out, columns=[*SETTING, "environments", "answers", "floor", "ratio"])
+
+
+def efficiency(rows: pd.DataFrame) -> pd.DataFrame:
+    """PESI's information efficiency: per domain and flip rate of both parts, for each checkpoint n of the
+    task part, the fewest answers m after which the Bayesian learner (uniform queries, told the flip rate as
+    PESI is) has a mean error at most PESI's mean error after n (same environments, uniform queries), and
+    m / n."""
+    task = rows[
+        (rows["part"] == "task") & (rows["metric"] == "param_error") & (rows["query_rule"] == "uniform")
+    ]
+    answers = rows[
+        (rows["part"] == "answers")
+        & (rows["metric"] == "param_error")
+        & (rows["teacher"] == "mistake")
+        & (rows["query_rule"] == "uniform")
+        & (rows["told"] == "model")
+    ]
+    out = []
+    for (domain, noise), pesi in task[task["method"] == "pesi"].groupby(["domain", "noise"], sort=False):
+        bayes = answers[(answers["domain"] == domain) & (answers["noise"] == noise)]
+        if bayes.empty:
+            continue
+        curve = bayes.groupby("episode")["value"].mean()
+        for n, error in pesi[pesi["episode"] > 0].groupby("episode")["value"].mean().items():
+            matched = curve.index[curve.to_numpy() <= error]
+            m = float(matched[0]) if matched.size else np.nan
+            out.append((domain, noise, int(n), float(error), m, m / int(n)))
+    return pd.DataFrame(
+        out, columns=["domain", "noise", "answers", "pesi_error", "bayes_answers", "efficiency"]
+    )
+
+
+def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
+    """Per domain, teacher and flip rate under information gain: the answers to one step (`answers_to_step`)
+    and the mean error at the last answer of the learner told the teacher's kind only and of the one told
+    nothing (every model weighed by its marginal likelihood), each against the learner told the true
+    model: `kind_ratio`, `nothing_ratio` divide the answers, or where the told learner never gets within one
+    step, the final errors. Settings with the told learner alone (`blind_noise_levels`) are left out."""
+    keys = ["domain", "teacher", "noise"]
+    ig = steps[steps["query_rule"] == "information_gain"]
+    blind = ig[ig["told"] != "model"].set_index(keys).index
+    ig = ig[ig.set_index(keys).index.isin(blind)]
+    answers = ig.pivot(index=keys, columns="told", values="answers")
+    errors = rows[
+        (rows["part"] == "answers")
+        & (rows["metric"] == "param_error")
+        & (rows["query_rule"] == "information_gain")
+    ]
+    last = errors[errors["episode"] == errors["episode"].max()]
+    final = last.groupby([*keys, "told"])["value"].mean().unstack("told")
+    out = answers.join(final.add_suffix("_error")).reindex(columns=[*TOLD, *(f"{t}_error" for t in TOLD)])
+    reached = out["model"].notna()
+    for told_ in ("kind", "nothing"):
+        out[f"{told_}_ratio"] = np.where(
+            reached, out[told_] / out["model"], out[f"{told_}_error"] / out["model_error"]
+        )
+    out["compared"] = np.where(reached, "answers", "final error")
+    return out.reset_index()
