@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -82,48 +83,47 @@ def push_strip(frame: np.ndarray, travelled: float, goal: float) -> np.ndarray:
     return np.asarray(image)
 
 
-def wiping_frames(
-    task: WipingTask, truth: float, estimate: float, layout: Layout, frames: int
-) -> list[np.ndarray] | None:
-    """The stroke's clip, each frame with the force gauge; None where no GL is."""
-    images = task.clip_frames(truth, estimate, layout, frames)
-    if images is None:
-        return None
+Mark = Callable[[np.ndarray], np.ndarray]
+"""What is drawn on one frame of a clip."""
+
+
+def wiping_marks(task: WipingTask, truth: float, estimate: float, layout: Layout, frames: int) -> list[Mark]:
+    """Per frame of the stroke's clip: the force gauge at that frame's contact force."""
     force = task.rollout(truth, estimate, layout).features[:, FORCE_Z]  # the clip's own stroke again
-    shown = force[evenly_spaced(len(force), frames)]
     band = task.config.force_band
-    return [force_gauge(image, float(f), band) for image, f in zip(images, shown, strict=True)]
+    return [partial(force_gauge, force=float(f), band=band) for f in force[evenly_spaced(len(force), frames)]]
 
 
-def pushing_frames(
+def pushing_marks(
     task: PushingTask, truth: float, estimate: float, layout: Layout, frames: int
-) -> list[np.ndarray] | None:
-    """The push's clip, each frame with the strip of the cube's way to its goal; None where no GL is."""
-    images = task.clip_frames(truth, estimate, layout, frames)
-    if images is None:
-        return None
+) -> list[Mark]:
+    """Per frame of the push's clip: the strip with the cube where it is in that frame."""
     start, goal = (np.asarray(point, float) for point in layout)
     task.reset(truth, start, goal)
     push = task.push(estimate)  # the clip's own push again
-    direction = (goal - start) / np.linalg.norm(goal - start)
-    travelled = (push.cube_xy[evenly_spaced(len(push.features), frames)] - start) @ direction
     distance = float(np.linalg.norm(goal - start))
-    return [push_strip(image, float(t), distance) for image, t in zip(images, travelled, strict=True)]
+    shown = push.cube_xy[evenly_spaced(len(push.features), frames)]
+    travelled = (shown - start) @ ((goal - start) / distance)
+    return [partial(push_strip, travelled=float(t), goal=distance) for t in travelled]
 
 
-ANNOTATED_FRAMES: dict[str, Callable[[Any, float, float, Layout, int], list[np.ndarray] | None]] = {
-    "wiping": wiping_frames,
-    "pushing": pushing_frames,
+FRAME_MARKS: dict[str, Callable[[Any, float, float, Layout, int], list[Mark]]] = {
+    "wiping": wiping_marks,
+    "pushing": pushing_marks,
 }
-"""Per domain: a clip's frames with what a person needs to judge it."""
+"""Per domain: what each frame of a clip is marked with, for a person to judge it."""
 
 
 def annotated_frames(
     domain: str, task: Any, truth: float, estimate: float, layout: Layout, frames: int
 ) -> list[np.ndarray] | None:
-    """The clip of pi^l executed with `estimate` from `layout` in a world at `truth`, as `frames` marked
-    images (`ANNOTATED_FRAMES`); None where no GL is."""
-    return ANNOTATED_FRAMES[domain](task, truth, estimate, layout, frames)
+    """The clip of pi^l executed with `estimate` from `layout` in a world at `truth`, as `frames` images
+    marked as `FRAME_MARKS` says; None where no GL is."""
+    images = task.clip_frames(truth, estimate, layout, frames)
+    if images is None:
+        return None
+    marks = FRAME_MARKS[domain](task, truth, estimate, layout, frames)
+    return [mark(image) for mark, image in zip(marks, images, strict=True)]
 
 
 def side_by_side_gif(clips: Sequence[Sequence[np.ndarray]], fps: int) -> bytes:
