@@ -1,5 +1,6 @@
-"""Notebook 09 in JupyterLab in a real headless browser: a person's clicks and keys reach the session file,
-and a reopened notebook resumes where the person stopped.
+"""Notebook 09 in JupyterLab in a real headless browser: a person's clicks and keys reach the session file; a
+killed kernel resumes where the person stopped; a read-only session file and a second kernel on the same file
+are refused with a message before any clip plays; a finished session reopens on its summary.
 
 Needs Debian's `chromium` (`.ci/run` installs it) and Playwright's Python client (environment.txt); where
 either is missing the test is skipped with the reason, never passed. The screenshot of the notebook it takes
@@ -12,10 +13,13 @@ import contextlib
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -78,14 +82,14 @@ def serving(command: list[str], port: int, env: dict[str, str]) -> Iterator[None
     """A server started by `command`, once it listens on `port`; stopped afterwards."""
     server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
             with socket.socket() as s:
                 if s.connect_ex(("127.0.0.1", port)) == 0:
                     break
             time.sleep(0.3)
         else:
-            pytest.fail(f"{command[2]} did not start within 60 s")
+            pytest.fail(f"{command[2]} did not start within 120 s")
         yield
     finally:
         server.terminate()
@@ -104,7 +108,8 @@ def browser_available() -> None:
 def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     """A JupyterLab server on loopback over a folder with the person's notebook; (url, results dir)."""
     browser_available()
-    person_notebook(tmp_path)
+    notebook = person_notebook(tmp_path)
+    shutil.copy(notebook, tmp_path / "09_teach_second.ipynb")  # the same session from another kernel
     port, token = free_port(), "hipref-test"
     results = tmp_path / "results"
     env = {**os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
@@ -119,7 +124,11 @@ def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
 
 def run_all(page: Page) -> None:
     """Run > Run All Cells once the notebook's kernel is idle."""
-    page.get_by_text("Python (hipref) | Idle").wait_for(timeout=120_000)
+    try:
+        page.get_by_text("Python (hipref) | Idle").wait_for(timeout=120_000)
+    except Exception:  # what the page showed instead
+        page.screenshot(path=str(Path(tempfile.gettempdir()) / "hipref_run_all_failed.png"))
+        raise
     page.get_by_role("menuitem", name="Run", exact=True).click()
     page.get_by_role("menuitem", name="Run All Cells", exact=True).click()
 
@@ -136,13 +145,72 @@ def wait_answers(results: Path, count: int, timeout: float = 60) -> list[dict]:
     return found
 
 
+FLAGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync"]  # fmt: skip
+
+
+def session_lines(results: Path) -> list[tuple]:
+    """The session file line by line: its header's format, then each answer's kind, query and answer."""
+    header, *stored = (results / "sessions" / PERSON["session"]).read_text().splitlines()
+    assert json.loads(header)["format"] == "hipref-teaching-session/1"
+    kinds = {"preference": ("query", "answer"), "feedback": ("step", "feedback")}
+    return [(a["kind"], *(a[field] for field in kinds[a["kind"]])) for a in map(json.loads, stored)]
+
+
+def kernel_pid(results: Path) -> int:
+    """The pid of the kernel holding the session's lock (`hipref.teach.session` writes it there)."""
+    holder = (results / "sessions" / (PERSON["session"] + ".lock")).read_text()
+    return int(holder.split()[1])
+
+
+def kill_kernel(results: Path, url: str) -> None:
+    """SIGKILL the kernel writing the session (the lock is freed), then wait until JupyterLab's server has
+    a live kernel for the notebook again: its own restart, or one asked of its REST API when that gave up."""
+    pid = kernel_pid(results)
+    os.kill(pid, signal.SIGKILL)
+    api = url.split("/lab/")[0] + "/api/kernels"
+    token = "?token=" + url.split("token=")[1]
+    deadline = time.monotonic() + 240
+    asked = False
+    while time.monotonic() < deadline:
+        time.sleep(1)
+        with urllib.request.urlopen(api + token) as response:
+            (kernel,) = json.load(response)
+        if kernel["execution_state"] == "idle" and not Path(f"/proc/{pid}").exists():
+            return
+        if kernel["execution_state"] == "dead" and not asked:
+            request = urllib.request.Request(f"{api}/{kernel['id']}/restart{token}", method="POST")
+            urllib.request.urlopen(request).close()
+            asked = True
+    pytest.fail("JupyterLab's server had no live kernel for the notebook 240 s after the kill")
+
+
+@contextlib.contextmanager
+def read_only(path: Path) -> Iterator[None]:
+    """`path` made read-only for whoever runs the test: mode 0444, and immutable (chattr +i) for root, who
+    writes through file modes. Skips where neither holds."""
+    path.chmod(0o444)
+    immutable = os.geteuid() == 0
+    if immutable and subprocess.run(["chattr", "+i", str(path)], capture_output=True).returncode != 0:
+        path.chmod(0o644)
+        pytest.skip("cannot make a file read-only for root here (chattr +i refused)")
+    try:
+        yield
+    finally:
+        if immutable:
+            subprocess.run(["chattr", "-i", str(path)], check=True)
+        path.chmod(0o644)
+
+
 @pytest.mark.slow
-def test_a_person_teaches_closes_the_browser_and_resumes(lab):
+def test_a_person_teaches_through_kills_refusals_and_reopening(lab):
+    """One JupyterLab server through a person's session: a double click and a key; the browser closed and
+    the kernel killed mid-session; the session file made read-only (refused before a clip plays); the
+    session resumed in the new kernel and finished; the finished session run again (the summary shown); a
+    second kernel on the same file (refused, naming the first). The file is checked after each."""
     url, results = lab
-    flags = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-             "--disable-background-networking", "--disable-component-update", "--disable-sync"]  # fmt: skip
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=flags)
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
         page = browser.new_page(viewport={"width": 1100, "height": 1400})
         page.goto(url)
         run_all(page)
@@ -151,14 +219,15 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         preferences.get_by_role("button", name="◀ left").dblclick()  # a double click answers one query
         preferences.get_by_text("Query 2 of 3").wait_for(timeout=60_000)
         preferences.get_by_role("button", name="◀ left").wait_for(timeout=60_000)  # live again
-        assert [a["answer"] for a in answers(results)] == ["left"]
+        assert session_lines(results) == [("preference", 0, "left")]
         page.mouse.move(0, 0)
         assert preferences.locator(".hipref-keys-off").is_visible()  # the widget says the keys are off
         preferences.hover()
         assert preferences.locator(".hipref-keys-on").is_visible()
         page.keyboard.press("ArrowRight")  # the hotkey, with the mouse over the clips
         preferences.get_by_text("Query 3 of 3").wait_for(timeout=60_000)
-        assert [a["answer"] for a in wait_answers(results, 2)] == ["left", "right"]
+        wait_answers(results, 2)
+        assert session_lines(results) == [("preference", 0, "left"), ("preference", 1, "right")]
         feedback = page.locator(".hipref-feedback")
         feedback.get_by_role("button", name="+1 good").click()
         feedback.get_by_text("Step 2 of 2").wait_for(timeout=60_000)
@@ -166,12 +235,21 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         shot = results / "figures" / "09_teach_browser.png"
         shot.parent.mkdir(parents=True, exist_ok=True)
         page.screenshot(path=str(shot), full_page=False)
-        browser.close()  # the person closes the browser mid-session
+        browser.close()  # the person closes the browser mid-session, and the kernel dies
+        kill_kernel(results, url)
+        answered = [("preference", 0, "left"), ("preference", 1, "right"), ("feedback", 0, 1)]
+        assert session_lines(results) == answered
 
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=flags)
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
         page = browser.new_page(viewport={"width": 1100, "height": 1400})
         page.goto(url)
-        run_all(page)  # the notebook reopened and run again resumes from the session file
+        session = results / "sessions" / PERSON["session"]
+        with read_only(session):
+            run_all(page)  # the person is told the answers cannot be saved, before any clip is shown
+            page.get_by_text("cannot be written").first.wait_for(timeout=120_000)
+            assert page.locator(".hipref-preferences").count() == 0
+        assert session_lines(results) == answered
+        run_all(page)  # writable again: the session resumes where the killed kernel stopped
         preferences = page.locator(".hipref-preferences")
         preferences.get_by_text("Query 3 of 3").wait_for(timeout=240_000)
         preferences.get_by_role("button", name="can't tell ▼").click()
@@ -181,15 +259,25 @@ def test_a_person_teaches_closes_the_browser_and_resumes(lab):
         feedback.hover()
         page.keyboard.press("-")
         feedback.get_by_text("Feedback episode over").wait_for(timeout=60_000)
+        wait_answers(results, 5)
+        finished = [*answered[:2], ("feedback", 0, 1), ("preference", 2, "cant_tell"), ("feedback", 1, -1)]
+        assert session_lines(results) == finished
+        run_all(page)  # the finished session reopened: the summary, no query
+        page.get_by_text("3 answers, 1 can't tell").wait_for(timeout=240_000)
+        done = page.locator(".hipref-preferences").get_by_text("All 3 preference queries answered")
+        assert done.is_visible()
+        assert page.locator(".hipref-feedback").get_by_text("Feedback episode over").is_visible()
+        holder = kernel_pid(results)
+
+        second = browser.new_page(viewport={"width": 1100, "height": 1400})
+        second.goto(url.replace("09_teach.ipynb?", "09_teach_second.ipynb?reset&"))
+        run_all(second)  # a second kernel on the same session file is refused, naming the first
+        refusal = second.locator(".jp-OutputArea-output", has_text="is open in another live session").first
+        refusal.wait_for(timeout=120_000)
+        assert f"pid {holder} on host" in refusal.inner_text()
+        assert second.locator(".hipref-preferences").count() == 0
         browser.close()
-    stored = wait_answers(results, 5)
-    assert [(a["kind"], a.get("answer", a.get("feedback"))) for a in stored] == [
-        ("preference", "left"),
-        ("preference", "right"),
-        ("feedback", 1),
-        ("preference", "cant_tell"),
-        ("feedback", -1),
-    ]
+    assert session_lines(results) == finished
     assert shot.stat().st_size > 10_000
 
 

@@ -566,3 +566,30 @@ def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(r
     again = ParticipantApp(config, render=False)
     again._start_condition(0)
     assert "Thank you" in again.widget.children[0].value
+
+
+def test_conditions_without_a_participant_are_refused():
+    with pytest.raises(ValueError, match=r"conditions \['uniform'\] are a participant's .* set participant"):
+        TeachConfig(conditions=("uniform",))
+
+
+def test_notebook_09_run_with_a_participant_shows_the_screens_then_stops_saying_why(results, capsys):
+    """Run All in JupyterLab with `participant` set: the participant's screens, then a one-line stop at the
+    first researcher cell (no traceback, no NameError of a session the participant branch did not open)."""
+    from IPython.core.interactiveshell import InteractiveShell
+
+    notebook = Path(__file__).resolve().parents[1] / "notebooks" / "09_teach.ipynb"
+    code = [c for c in json.loads(notebook.read_text())["cells"] if c["cell_type"] == "code"]
+    cells = ["".join(c["source"]) for c in code]
+    shell = InteractiveShell.instance()
+    shell.reset(new_session=False)
+    parameters = cells[0] + "\nparticipant = 'P1'\nconditions = ['uniform']\n"
+    assert shell.run_cell(parameters).success
+    assert shell.run_cell(cells[1]).success  # the participant's screens
+    assert not isinstance(shell.user_ns.get("session"), SessionFile)  # no researcher's session opened
+    stopped = shell.run_cell(cells[2])
+    assert type(stopped.error_in_exec).__name__ == "ParticipantMode"
+    shown = capsys.readouterr().out
+    assert "Teach a robot" in shown
+    assert "Stopped here:" in shown and "make teach PARTICIPANT=P1" in shown
+    assert "Traceback" not in shown and "NameError" not in shown

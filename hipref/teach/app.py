@@ -58,6 +58,20 @@ KEYS_HINT = (
     "<span class='hipref-keys-off'>⌨ keys off: point at this box to answer with {keys}</span>"
 )
 """Whether the keys answer: ipyevents marks the widget `ipyevents-watched` while it holds the focus."""
+QUESTIONS: dict[str, str] = {
+    "wiping": "wiping the desk? <i>The gauge at each clip's right is the sponge's contact force; green: the "
+    "safe band (a red bar presses too hard, an empty one does not touch).</i>",
+    "pushing": "pushing the cube to its goal? <i>The strip under each clip is the cube's way: the orange "
+    "square is the cube, the green mark its goal.</i>",
+}
+"""Per domain: the task a preference query asks about, and how to read the clips' marks
+(`hipref.teach.clips`)."""
+GRID_LEGEND = (
+    "<span style='color:#3182bd'>■</span> wiped cell · <span style='color:#e6550d'>●</span> the sponge · "
+    "<span style='color:#d62728'>➜</span> COACH's proposed move. The move is executed whatever you answer: "
+    "as in COACH (Eq. 1), your feedback judges the move it makes and changes the moves it proposes next."
+)
+"""What the feedback grid's marks mean, and what an answer does."""
 
 
 class AnswerPanel:
@@ -213,8 +227,8 @@ class PreferenceApp(AnswerPanel):
             self.clips.layout.display = "none"
         else:
             self.heading.value = (
-                f"<b>Query {shown.number + 1} of {planned}:</b> which clip shows the robot doing the task "
-                "better?"
+                f"<b>Query {shown.number + 1} of {planned}:</b> in which clip is the robot better at "
+                f"{QUESTIONS[teaching.config.domain]}"
             )
             self.clips.value = shown.animation
             self.clips.layout.display = None
@@ -246,7 +260,8 @@ class FeedbackApp(AnswerPanel):
         self.heading = widgets.HTML()
         self.progress = widgets.IntProgress(min=0, max=teaching.config.feedback_steps)
         buttons = widgets.HBox(list(self.buttons.values()))
-        children = [self.heading, self.grid, buttons, self.progress]
+        legend = widgets.HTML(f"<small>{GRID_LEGEND}</small>")
+        children = [self.heading, self.grid, legend, buttons, self.progress]
         self._build("hipref-feedback", children, "1, 0, −", teaching.config.teacher)
 
     def _finished(self) -> bool:

@@ -1,15 +1,129 @@
-"""Two clips side by side as one looping animated GIF, the form a browser plays without a video codec."""
+"""Two clips side by side as a looping animated GIF, each frame marked with what a person needs to judge it.
+
+Without marks a desk guessed too low (the sponge pressing too hard) looks like normal wiping, and a cube
+stopping short of an unmarked goal looks like any push. So each wiping frame carries a gauge of the contact
+force with the safe band, and each pushing frame a strip of the cube's way to its goal (`annotated_frames`).
+"""
 
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
+from typing import Any
 
 import numpy as np
-from PIL import Image
+from PIL import Image, ImageDraw
+
+from hipref.control.tool import FORCE_Z
+from hipref.envs.pushing import PushingTask
+from hipref.envs.task import Layout, evenly_spaced
+from hipref.envs.wiping import WipingTask
 
 GAP = 8
 """Pixels of white between the two clips."""
+GAUGE_TOP = 2.0
+"""The force gauge's scale ends at this multiple of the safe band's top (a force beyond it fills it)."""
+SAFE, HARD, OFF = (44, 160, 44), (214, 39, 40), (127, 127, 127)
+"""Colours of a force inside the safe band, above it, below it (not touching)."""
+GOAL, CUBE = (44, 160, 44), (255, 127, 14)
+"""Colours of the pushing strip's goal mark and cube."""
+
+
+def caption(draw: ImageDraw.ImageDraw, text: str, colour: tuple[int, int, int]) -> None:
+    """`text` at the frame's top left, on white (the scenes are dark there)."""
+    left, top, right, bottom = draw.textbbox((4, 4), text)
+    draw.rectangle((left - 3, top - 3, right + 3, bottom + 3), fill=(255, 255, 255))
+    draw.text((4, 4), text, fill=colour)
+
+
+def force_gauge(frame: np.ndarray, force: float, band: tuple[float, float]) -> np.ndarray:
+    """`frame` with a vertical gauge of the contact force `force` (N) at its right edge, the safe `band`
+    shaded green, and a caption: the force, and whether it is safe, too hard, or off (not touching)."""
+    image = Image.fromarray(frame)
+    draw = ImageDraw.Draw(image)
+    height, width = frame.shape[:2]
+    left, right, top, bottom = width - 26, width - 10, 22, height - 22
+    low, high = band
+    scale = GAUGE_TOP * high
+
+    def level(f: float) -> float:
+        return bottom - (bottom - top) * min(max(f, 0.0), scale) / scale
+
+    draw.rectangle((left, top, right, bottom), fill=(255, 255, 255), outline=(0, 0, 0))
+    draw.rectangle((left, level(high), right, level(low)), fill=(199, 233, 192))
+    colour, words = (
+        (SAFE, "safe") if low <= force <= high else (HARD, "too hard") if force > high else (OFF, "off")
+    )
+    draw.rectangle((left + 4, level(force), right - 4, bottom), fill=colour)
+    draw.text((left - 2, level(high) - 11), f"{high:g}", fill=(0, 0, 0))
+    caption(draw, f"contact force {max(force, 0.0):.0f} N: {words}", colour)
+    return np.asarray(image)
+
+
+def push_strip(frame: np.ndarray, travelled: float, goal: float) -> np.ndarray:
+    """`frame` with a strip along its bottom: the cube's way from its start (left) to its goal (a green
+    mark), the cube where it is now (`travelled` m of the `goal` m), and how far it is from the goal."""
+    image = Image.fromarray(frame)
+    draw = ImageDraw.Draw(image)
+    height, width = frame.shape[:2]
+    y, start, end = height - 12, 12, width - 12
+    span = 1.5 * goal  # room past the goal for an overshoot
+
+    def x(distance: float) -> float:
+        return start + (end - start) * min(max(distance, 0.0), span) / span
+
+    draw.rectangle((0, height - 24, width, height), fill=(255, 255, 255))
+    draw.line((start, y, end, y), fill=(0, 0, 0), width=1)
+    draw.line((x(goal), y - 9, x(goal), y + 9), fill=GOAL, width=3)
+    draw.rectangle((x(travelled) - 5, y - 5, x(travelled) + 5, y + 5), fill=CUBE, outline=(0, 0, 0))
+    to_go = goal - travelled
+    words = f"{to_go * 100:.0f} cm to the goal" if to_go >= 0 else f"{-to_go * 100:.0f} cm past the goal"
+    caption(draw, f"cube: {words}", (0, 0, 0))
+    return np.asarray(image)
+
+
+Mark = Callable[[np.ndarray], np.ndarray]
+"""What is drawn on one frame of a clip."""
+
+
+def wiping_marks(task: WipingTask, truth: float, estimate: float, layout: Layout, frames: int) -> list[Mark]:
+    """Per frame of the stroke's clip: the force gauge at that frame's contact force."""
+    force = task.rollout(truth, estimate, layout).features[:, FORCE_Z]  # the clip's own stroke again
+    band = task.config.force_band
+    return [partial(force_gauge, force=float(f), band=band) for f in force[evenly_spaced(len(force), frames)]]
+
+
+def pushing_marks(
+    task: PushingTask, truth: float, estimate: float, layout: Layout, frames: int
+) -> list[Mark]:
+    """Per frame of the push's clip: the strip with the cube where it is in that frame."""
+    start, goal = (np.asarray(point, float) for point in layout)
+    task.reset(truth, start, goal)
+    push = task.push(estimate)  # the clip's own push again
+    distance = float(np.linalg.norm(goal - start))
+    shown = push.cube_xy[evenly_spaced(len(push.features), frames)]
+    travelled = (shown - start) @ ((goal - start) / distance)
+    return [partial(push_strip, travelled=float(t), goal=distance) for t in travelled]
+
+
+FRAME_MARKS: dict[str, Callable[[Any, float, float, Layout, int], list[Mark]]] = {
+    "wiping": wiping_marks,
+    "pushing": pushing_marks,
+}
+"""Per domain: what each frame of a clip is marked with, for a person to judge it."""
+
+
+def annotated_frames(
+    domain: str, task: Any, truth: float, estimate: float, layout: Layout, frames: int
+) -> list[np.ndarray] | None:
+    """The clip of pi^l executed with `estimate` from `layout` in a world at `truth`, as `frames` images
+    marked as `FRAME_MARKS` says; None where no GL is."""
+    images = task.clip_frames(truth, estimate, layout, frames)
+    if images is None:
+        return None
+    marks = FRAME_MARKS[domain](task, truth, estimate, layout, frames)
+    return [mark(image) for mark, image in zip(marks, images, strict=True)]
 
 
 def side_by_side_gif(clips: Sequence[Sequence[np.ndarray]], fps: int) -> bytes:

@@ -95,6 +95,11 @@ class TeachConfig:
                 f"participant must be 1-40 letters, digits, - or _ (it names the session files), got "
                 f"{self.participant!r}"
             )
+        if self.conditions and not self.participant:
+            raise ValueError(
+                f"conditions {list(self.conditions)} are a participant's (one session each): set participant "
+                "to an id for participant mode, or leave conditions [] and choose the session's query_rule"
+            )
         for rule in self.conditions:
             check_choice("conditions", rule, QUERY_RULES)
         if len(set(self.conditions)) != len(self.conditions):

@@ -11,7 +11,7 @@ import numpy as np
 
 from hipref.envs.task import Task
 from hipref.experiments.domains import domain_spec
-from hipref.teach.clips import side_by_side_gif
+from hipref.teach.clips import annotated_frames, side_by_side_gif
 from hipref.teach.preferences import PreferenceTeaching
 from hipref.validation import check_int
 
@@ -47,7 +47,7 @@ def before_and_after_clip(teaching: PreferenceTeaching) -> bytes | None:
     task, config = own_task(teaching), teaching.config
     layout = task.sample_layout(np.random.default_rng(np.random.SeedSequence([config.seed, OUTCOME_STREAM])))
     frames = [
-        task.clip_frames(teaching.truth, estimate, layout, config.frames)
+        annotated_frames(config.domain, task, teaching.truth, estimate, layout, config.frames)
         for estimate in (teaching.initial_estimate, teaching.estimate())
     ]
     clips = [f for f in frames if f is not None]

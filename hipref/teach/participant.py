@@ -179,9 +179,33 @@ class ParticipantApp:
         ]
 
 
+class ParticipantMode(Exception):
+    """Notebook 09's researcher sections reached with a participant set: they are not run. Shown by IPython
+    as its message alone (`_render_traceback_`), no stack: nothing went wrong, Run All just stops here."""
+
+    def __init__(self, participant: str) -> None:
+        super().__init__(
+            f"participant mode (participant = {participant!r}): participant {participant}'s screens are "
+            "shown above, and the researcher's sections below are not run. For the researcher's session set "
+            "participant = '' (and conditions = []) and run all cells again; to serve the participant "
+            f"without code run `make teach PARTICIPANT={participant}`."
+        )
+
+    def _render_traceback_(self) -> list[str]:
+        return [f"\x1b[1;34mStopped here:\x1b[0m {self}"]
+
+
 def participant_screen(config: TeachConfig) -> None:
     """In notebook 09: the participant's screens, shown."""
     display(ParticipantApp(config).widget)
+
+
+def researcher_sections(config: TeachConfig) -> None:
+    """Raise `ParticipantMode` when `config` is a participant's: notebook 09's first researcher cell calls
+    it, so that Run All in JupyterLab stops with that message under the participant's screens instead of
+    failing on the session the participant branch did not open (Voila's view holds no such cell)."""
+    if config.participant:
+        raise ParticipantMode(config.participant)
 
 
 def participant_view(notebook: Path, parameters: dict[str, Any], out: Path) -> Path:

@@ -37,7 +37,7 @@ from hipref.envs.task import Clip, Layout, clip
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
 from hipref.learners.sysid import CandidateSet
-from hipref.teach.clips import side_by_side_gif
+from hipref.teach.clips import annotated_frames, side_by_side_gif
 from hipref.teach.config import TeachConfig
 from hipref.teach.learner import (
     Learner,
@@ -234,8 +234,11 @@ class PreferenceTeaching:
             )
         animation = None
         if record is None and self.render and wanted():
+            domain = self.config.domain
             frames = [
-                self._task.clip_frames(self.truth, query.candidates[i], layout, self.config.frames)
+                annotated_frames(
+                    domain, self._task, self.truth, query.candidates[i], layout, self.config.frames
+                )
                 for i in order
             ]
             clips = [f for f in frames if f is not None]
