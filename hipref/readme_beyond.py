@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 
 from hipref import verdicts
-from hipref.experiments.answers_tables import CONSISTENT, told_against_chosen
+from hipref.experiments.answers_tables import CONSISTENT, answers_to_step, told_against_chosen
+from hipref.experiments.answers_to_success import MODEL_CHOICE_BOUND, STEP_BOUNDS
 from hipref.experiments.conditioning import TOLERANCE, conditioning
 from hipref.experiments.domains import DOMAINS
 from hipref.experiments.si_pretraining import PAPER_A7
@@ -154,10 +155,8 @@ def _claims_verdicts(results: Path, section: str) -> list[str]:
     return [line.rstrip(" |").rsplit("|", 1)[1].strip() for line in lines]
 
 
-ANSWER_BARS = {0.0: 10, 0.2: 30}
 FLIPS = 0.2
 """The flip rate of the paper's teacher at which notebook 12 sets its bars beside perfect answers."""
-"""Notebook 12's bars: answers to one step of Phi at each flip rate, told the kind of teacher."""
 
 SUCCESS_BARS = {"wiping": 0.9, "pushing": 0.8}
 """Notebook 12's bars: the task's success after `SUCCESS_AFTER` chosen answers."""
@@ -168,9 +167,6 @@ SUCCESS_AFTER = 20
 GAP_FACTOR = 4
 """Notebook 12's bar: the Bayesian learner's error at least this many times below PESI's."""
 
-CHOSEN_BAR = 1.25
-"""Notebook 12's bar: answers told nothing of the teacher against told its model."""
-
 
 def _cells(values: dict[str, str]) -> str:
     return f"{values['wiping']} in wiping and {values['pushing']} in pushing"
@@ -180,7 +176,8 @@ def _answers(results: Path) -> dict[str, str]:
     """Notebook 12: what an exact Bayesian learner takes from the same answers as PESI."""
     steps = pd.read_csv(results / "tables" / "12_answers_to_step.csv")
     efficiency = pd.read_csv(results / "tables" / "12_efficiency.csv")
-    rows = pd.read_csv(results / "data" / "12_answers_to_success.csv")
+    every_row = pd.read_csv(results / "data" / "12_answers_to_success.csv")
+    rows, held_out = (every_row[every_row["grid"] == grid] for grid in ("study", "held_out"))
     params = ran_with(results, "12_answers_to_success")
     task = rows[(rows["part"] == "task") & rows["metric"].isin(["param_error", "success_rate"])]
     ig = steps[(steps["teacher"] == "mistake") & (steps["query_rule"] == "information_gain")]
@@ -193,7 +190,7 @@ def _answers(results: Path) -> dict[str, str]:
         "nb12_checkpoint": str(checkpoint),
         "nb12_after": str(SUCCESS_AFTER),
         "nb12_factor": str(GAP_FACTOR),
-        "nb12_chosen_bar": f"{CHOSEN_BAR:g}",
+        "nb12_chosen_bar": f"{MODEL_CHOICE_BOUND:g}",
         "nb12_teachers": str(steps["teacher"].nunique()),
         "nb12_step": _cells(
             {d: f"{s.candidates.resolution * UNITS[d][1]:g}{UNITS[d][0]}" for d, s in DOMAINS.items()}
@@ -204,7 +201,7 @@ def _answers(results: Path) -> dict[str, str]:
         out[f"nb12_kind{key}"] = _cells({d: f"{at.loc[d, 'answers']:g}" for d in DOMAINS})
         out[f"nb12_floor{key}"] = _cells({d: f"{at.loc[d, 'floor']:.1f}" for d in DOMAINS})
         out[f"nb12_ratio{key}"] = _cells({d: f"{at.loc[d, 'ratio']:.2f}" for d in DOMAINS})
-        out[f"nb12_bar{key}"] = str(ANSWER_BARS[noise])
+        out[f"nb12_bar{key}"] = str(STEP_BOUNDS[noise])
     out["nb12_flips"] = percent(FLIPS)
     gaps, errors, success, pesi_success, prior = [], {}, {}, {}, {}
     for domain in DOMAINS:
@@ -253,13 +250,37 @@ def _answers(results: Path) -> dict[str, str]:
     out["nb12_pesi_success"] = _cells(pesi_success)
     out["nb12_prior"] = _cells(prior)
     out.update(_model_choice(steps, rows))
+    out.update(_held_out_answers(held_out))
+    return out
+
+
+def _held_out_answers(held_out: pd.DataFrame) -> dict[str, str]:
+    """Notebook 12's answers claims replicated on its held-out truths and seeds."""
+    table = answers_to_step(held_out)
+    models = told_against_chosen(table, held_out)
+    steps = table.set_index(["domain", "noise", "told"])
+    never = models[models["model"].notna() & models["nothing"].isna()]
+    answers = int(held_out["episode"].max())
+    out = {
+        "nb12_held_environments": str(int(steps["environments"].min())),
+        "nb12_held_choice_worst": f"{models['nothing_ratio'].max():.2f}",
+        "nb12_held_never": "".join(
+            f"; at {r.noise * 100:g} % flips in {r.domain} it was not within one step in 90 % of them after "
+            f"{answers} answers, where the learner told the model needed {r.model:g}"
+            for r in never.itertuples()
+        ),
+    }
+    for noise, key in ((0.0, "0"), (FLIPS, "20")):
+        out[f"nb12_held_kind{key}"] = _cells(
+            {d: f"{steps.loc[(d, noise, 'kind'), 'answers']:g}" for d in DOMAINS}
+        )
     return out
 
 
 def _model_choice(steps: pd.DataFrame, rows: pd.DataFrame) -> dict[str, str]:
     """Told nothing of the teacher against told its model: the settings past notebook 12's bar."""
     models = told_against_chosen(steps, rows)
-    past = models[models["nothing_ratio"] > CHOSEN_BAR]
+    past = models[models["nothing_ratio"] > MODEL_CHOICE_BOUND]
     listed = [
         f"{r.teacher} teacher at {r.noise:.0%} in {r.domain}, "
         + (
