@@ -7,7 +7,9 @@ from __future__ import annotations
 import os
 import pickle
 import signal
+import sys
 import threading
+import types
 import time
 from pathlib import Path
 
@@ -115,3 +117,12 @@ def test_a_failure_log_without_a_cache_goes_to_the_temporary_directory() -> None
     log = raised.value.log
     assert log is not None and "RuntimeError: toy failure in cell with seed 3" in log.read_text()
     log.unlink()
+
+
+def test_a_sweep_runs_after_ipythons_reset_deleted_the_main_modules_spec(monkeypatch) -> None:
+    """`%reset` in a notebook deletes `__main__.__spec__`, which spawn reads to start each worker."""
+    main = types.ModuleType("__main__")
+    del main.__spec__
+    monkeypatch.setitem(sys.modules, "__main__", main)
+    rows = run_sweep(toy_cell, [ToyCell(seed=seed) for seed in range(2)], cache_dir=False, workers=2)
+    assert len(rows) == len(run_sweep(toy_cell, [ToyCell(seed=0)], cache_dir=False, workers=1)) * 2

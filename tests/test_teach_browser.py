@@ -168,18 +168,22 @@ def kill_kernel(results: Path, url: str) -> None:
     a live kernel for the notebook again: its own restart, or one asked of its REST API when that gave up."""
     pid = kernel_pid(results)
     os.kill(pid, signal.SIGKILL)
-    api = url.split("/lab/")[0] + "/api/kernels"
-    token = "?token=" + url.split("token=")[1]
+    server, token = url.split("/lab/")[0], "?token=" + url.split("token=")[1]
     deadline = time.monotonic() + 240
     asked = False
     while time.monotonic() < deadline:
         time.sleep(1)
-        with urllib.request.urlopen(api + token) as response:
-            (kernel,) = json.load(response)
+        with urllib.request.urlopen(f"{server}/api/sessions{token}") as response:
+            # The server may hold other kernels (e.g. one JupyterLab started on its own); the notebook's
+            # session names the one that matters.
+            kernels = [s["kernel"] for s in json.load(response) if s["path"] == "09_teach.ipynb"]
+        if not kernels:
+            continue
+        (kernel,) = kernels
         if kernel["execution_state"] == "idle" and not Path(f"/proc/{pid}").exists():
             return
         if kernel["execution_state"] == "dead" and not asked:
-            request = urllib.request.Request(f"{api}/{kernel['id']}/restart{token}", method="POST")
+            request = urllib.request.Request(f"{server}/api/kernels/{kernel['id']}/restart{token}", method="POST")
             urllib.request.urlopen(request).close()
             asked = True
     pytest.fail("JupyterLab's server had no live kernel for the notebook 240 s after the kill")

@@ -194,6 +194,9 @@ def _run_pool(
 
     # "spawn" starts clean interpreters: safe under Jupyter and with torch, where fork can deadlock.
     context = multiprocessing.get_context("spawn")
+    main = sys.modules.get("__main__")
+    if main is not None and not hasattr(main, "__spec__"):
+        main.__spec__ = None  # IPython's %reset deletes it, and spawn reads it to start each worker
     pool = ProcessPoolExecutor(min(workers, len(cells)), mp_context=context, initializer=_init_worker)
     finished = False
     lost: dict[str, str] = {}
