@@ -9,8 +9,8 @@ import pickle
 import signal
 import sys
 import threading
-import types
 import time
+import types
 from pathlib import Path
 
 import pytest

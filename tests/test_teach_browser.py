@@ -183,7 +183,9 @@ def kill_kernel(results: Path, url: str) -> None:
         if kernel["execution_state"] == "idle" and not Path(f"/proc/{pid}").exists():
             return
         if kernel["execution_state"] == "dead" and not asked:
-            request = urllib.request.Request(f"{server}/api/kernels/{kernel['id']}/restart{token}", method="POST")
+            request = urllib.request.Request(
+                f"{server}/api/kernels/{kernel['id']}/restart{token}", method="POST"
+            )
             urllib.request.urlopen(request).close()
             asked = True
     pytest.fail("JupyterLab's server had no live kernel for the notebook 240 s after the kill")

@@ -573,7 +573,9 @@ def test_conditions_without_a_participant_are_refused():
         TeachConfig(conditions=("uniform",))
 
 
-def test_notebook_09_run_with_a_participant_shows_the_screens_then_stops_saying_why(results, capsys, monkeypatch):
+def test_notebook_09_run_with_a_participant_shows_the_screens_then_stops_saying_why(
+    results, capsys, monkeypatch
+):
     """Run All in JupyterLab with `participant` set: the participant's screens, then a one-line stop at the
     first researcher cell (no traceback, no NameError of a session the participant branch did not open)."""
     from IPython.core.interactiveshell import InteractiveShell
@@ -581,7 +583,9 @@ def test_notebook_09_run_with_a_participant_shows_the_screens_then_stops_saying_
     notebook = Path(__file__).resolve().parents[1] / "notebooks" / "09_teach.ipynb"
     code = [c for c in json.loads(notebook.read_text())["cells"] if c["cell_type"] == "code"]
     cells = ["".join(c["source"]) for c in code]
-    monkeypatch.setitem(sys.modules, "__main__", sys.modules["__main__"])  # the shell replaces it; put it back
+    monkeypatch.setitem(
+        sys.modules, "__main__", sys.modules["__main__"]
+    )  # the shell replaces it; put it back
     shell = InteractiveShell.instance()
     shell.reset(new_session=False)
     parameters = cells[0] + "\nparticipant = 'P1'\nconditions = ['uniform']\n"
