@@ -22,7 +22,7 @@ from hipref.experiments.domains import DOMAINS, domain_spec, estimate_error_grid
 from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import check_choice, check_grids, check_int, check_range
 
 COMPLIANT: dict[str, bool] = {"spd": False, "admittance": True}
 """The ablation's controllers by name, and whether each puts admittance control on SPD (A.8)."""
@@ -59,6 +59,7 @@ class ControllersConfig:
     in `mass_errors`."""
 
     def __post_init__(self) -> None:
+        check_grids(self)
         check_range("desk_height", self.desk_height, 0.5, 0.9)
         for h in self.desired_heights:
             check_range("desired_heights", h, 0.5, 0.9)

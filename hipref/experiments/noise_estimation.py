@@ -33,7 +33,7 @@ from hipref.learners.sysid import CandidateSet
 from hipref.results import tidy_rows
 from hipref.sweep import run_sweep
 from hipref.teachers.preference import pair_labels
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import check_choice, check_grids, check_int, check_range
 from hipref.verdicts import bootstrap_mean, trend
 
 PAPER_TABLE3: dict[float, float] = {
@@ -102,6 +102,7 @@ class NoiseEstimationConfig:
     """Root seed; each dataset's generator derives from it, the noise level and the repetition."""
 
     def __post_init__(self) -> None:
+        check_grids(self)
         check_int("n_preferences", self.n_preferences, 2, 100_000)
         check_int("repetitions", self.repetitions, 1, 100_000)
         if not self.noise_levels:

@@ -39,7 +39,7 @@ from hipref.experiments.si_pretraining import (
 from hipref.learners.calibration import pit
 from hipref.results import tidy_rows
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_int
+from hipref.validation import check_choice, check_grids, check_int
 
 COLUMN_GROUPS: dict[str, tuple[int, int]] = {
     "joint_positions": (0, 6),
@@ -126,6 +126,7 @@ class TauConfig:
     """Seed of the held-out collection, different from `seed`."""
 
     def __post_init__(self) -> None:
+        check_grids(self)
         if not self.domains or not self.n_trajectories or not self.histories:
             raise ValueError("domains, n_trajectories and histories must be non-empty")
         for domain in self.domains:

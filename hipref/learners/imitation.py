@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Protocol, TypeVar
+from typing import Any, ClassVar, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 import torch
@@ -39,7 +39,7 @@ from torch import nn
 
 from hipref.learners.mlp import tanh_mlp
 from hipref.numerics import adam
-from hipref.validation import check_int, check_range
+from hipref.validation import check_grids, check_int, check_range
 
 JOINTS = 6
 """Joints of the arm: q_bar's size, and the first values of a state (the joint positions)."""
@@ -95,7 +95,11 @@ class ImitationConfig:
     They change nothing of the training: the copy after i iterations is the policy an `iterations=i` run
     trains."""
 
+    SEQUENCES: ClassVar[tuple[str, ...]] = ("hidden",)
+    """Layer widths, whose values may repeat (`check_grids`)."""
+
     def __post_init__(self) -> None:
+        check_grids(self, self.SEQUENCES)
         check_int("iterations", self.iterations, 1)
         check_int("updates_per_iteration", self.updates_per_iteration, 1)
         check_int("batch_size", self.batch_size, 1)
