@@ -311,7 +311,7 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
     with serving(voila_command(view, port), port, env), sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=CHROMIUM, args=flags)
         page = browser.new_page(viewport={"width": 1100, "height": 1200})
-        page.goto(f"http://127.0.0.1:{port}/")
+        page.goto(f"http://127.0.0.1:{port}/", timeout=240_000)  # Voila runs the cells before serving
         screen = page.locator(".hipref-participant")
         screen.get_by_text("Teach a robot").wait_for(timeout=120_000)
         screen.get_by_role("button", name="Start the practice pair").click()

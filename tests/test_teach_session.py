@@ -598,3 +598,47 @@ def test_notebook_09_run_with_a_participant_shows_the_screens_then_stops_saying_
     assert "Teach a robot" in shown
     assert "Stopped here:" in shown and "make teach PARTICIPANT=P1" in shown
     assert "Traceback" not in shown and "NameError" not in shown
+
+
+def test_every_query_is_shown_from_one_layout_and_each_candidate_rendered_once(results, monkeypatch):
+    """The clips come from the session's display layout, each candidate's rendered once and shown again
+    from memory; after the last answer nothing more is rendered."""
+    from hipref.teach import clips as clip_module
+
+    rendered: list[tuple[float, tuple]] = []
+
+    def frames(domain, task, truth, estimate, layout, count):  # a frame whose colour names the candidate
+        rendered.append((estimate, tuple(np.concatenate([np.ravel(part) for part in layout]))))
+        return [np.full((6, 8, 3), int(estimate * 100) % 256, np.uint8)] * count
+
+    monkeypatch.setattr(clip_module, "annotated_frames", frames)
+    config = TeachConfig(**SMALL, frames=3)
+    teaching = PreferenceTeaching(config, open_session(config))
+    shown_pairs = []
+    while (shown := teaching.current) is not None:
+        assert shown.animations is not None and len(shown.animations) == 2
+        teaching.wait_ready()
+        shown_pairs.append([shown.query.candidates[i] for i in shown.order])
+        for gif, candidate in zip(shown.animations, shown_pairs[-1], strict=True):
+            assert gif == teaching.candidate_clips.gifs[candidate]  # that side's candidate's clip
+        teaching.answer("left", 1.0)
+    teaching.close()
+    estimates = [estimate for estimate, _ in rendered]
+    assert len(estimates) == len(set(estimates)), "no candidate rendered twice"
+    assert len({layout for _, layout in rendered}) == 1, "one display layout"
+    assert {c for pair in shown_pairs for c in pair} <= set(estimates)
+
+
+def test_without_gl_a_session_tries_rendering_once_and_shows_no_clips(results, monkeypatch):
+    from hipref.teach import clips as clip_module
+
+    tried: list[float] = []
+    monkeypatch.setattr(clip_module, "annotated_frames", lambda domain, task, truth, e, *_: tried.append(e))
+    config = TeachConfig(**SMALL)
+    teaching = PreferenceTeaching(config, open_session(config))
+    teaching.wait_ready()
+    assert teaching.current is not None and teaching.current.animations is None
+    teaching.answer("right", 1.0)
+    assert teaching.current is not None and teaching.current.animations is None
+    teaching.close()
+    assert len(tried) == 1

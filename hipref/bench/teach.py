@@ -45,7 +45,7 @@ def measure(domain: str, truth: float, queries: int, watch: float) -> dict[str, 
     teacher = ScriptedPreferenceTeacher(truth, 0.0, np.random.default_rng(0))
     sizes = []
     while (shown := app.teaching.current) is not None:
-        sizes.append(len(shown.animation or b""))
+        sizes.append(sum(map(len, shown.animations or ())))
         time.sleep(watch)
         label = teacher.answer(shown.query)
         app.wait_ready()  # the widget takes presses once the pair has been on screen for SETTLE_SECONDS

@@ -30,7 +30,7 @@ from ipyevents import Event
 
 from hipref.experiments.domains import domain_spec
 from hipref.teach.feedback import FeedbackTeaching
-from hipref.teach.preferences import ANSWERS, PreferenceTeaching
+from hipref.teach.preferences import ANSWERS, SIDES, PreferenceTeaching
 from hipref.teach.session import AnswerRefused, SessionLocked
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 
@@ -198,7 +198,9 @@ class PreferenceApp(AnswerPanel):
         self.buttons = {answer: widgets.Button(description=LABELS[answer]) for answer in ANSWERS}
         for answer, button in self.buttons.items():
             button.on_click(lambda _, answer=answer: self.press(answer))
-        self.clips = widgets.Image(format="gif")
+        self.clips = widgets.HBox(
+            [widgets.Image(format="gif") for _ in SIDES], layout=widgets.Layout(grid_gap="8px")
+        )
         self.heading = widgets.HTML()
         self.progress = widgets.IntProgress(min=0, max=teaching.config.preference_queries)
         self.status = widgets.HTML()
@@ -219,7 +221,7 @@ class PreferenceApp(AnswerPanel):
         if shown is None:
             self.heading.value = f"<b>All {planned} preference queries answered.</b>"
             self.clips.layout.display = "none"
-        elif shown.animation is None:
+        elif shown.animations is None:
             self.heading.value = (
                 f"<b>Query {shown.number + 1} of {planned}.</b> The clips cannot be rendered on this machine "
                 "(no OpenGL; see the message above); answer only if you can judge without them."
@@ -230,7 +232,8 @@ class PreferenceApp(AnswerPanel):
                 f"<b>Query {shown.number + 1} of {planned}:</b> in which clip is the robot better at "
                 f"{QUESTIONS[teaching.config.domain]}"
             )
-            self.clips.value = shown.animation
+            for image, gif in zip(self.clips.children, shown.animations, strict=True):
+                image.value = gif
             self.clips.layout.display = None
         self.status.value = self._status()
 

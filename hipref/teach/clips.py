@@ -145,3 +145,29 @@ def side_by_side_gif(clips: Sequence[Sequence[np.ndarray]], fps: int) -> bytes:
     duration = round(1000 / fps)
     images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:], duration=duration, loop=0)
     return buffer.getvalue()
+
+
+class CandidateClips:
+    """Each candidate's clip as a looping GIF, rendered once in a session and shown again whenever a query
+    asks that candidate: pi^l executed with it from the session's one display layout, in the world at the
+    truth, its frames marked (`annotated_frames`). A person compares two candidates on the same motion from
+    query to query, and after the first few queries the next pair needs no rendering.
+
+    Only one thread may use it: it executes and renders on `task`."""
+
+    def __init__(self, domain: str, task: Any, truth: float, layout: Layout, frames: int, fps: int) -> None:
+        self.domain, self.task, self.truth, self.layout = domain, task, truth, layout
+        self.frames, self.fps = frames, fps
+        self.gifs: dict[float, bytes] = {}
+        self.available = True
+        """False once rendering failed (no GL): nothing more is tried."""
+
+    def gif(self, estimate: float) -> bytes | None:
+        """The clip of `estimate`, rendered now if it was not yet; None where no GL is."""
+        if estimate not in self.gifs and self.available:
+            frames = annotated_frames(self.domain, self.task, self.truth, estimate, self.layout, self.frames)
+            if frames is None:
+                self.available = False
+            else:
+                self.gifs[estimate] = side_by_side_gif([frames], self.fps)
+        return self.gifs.get(estimate)

@@ -33,10 +33,14 @@ class SessionStreams(NamedTuple):
     evaluation: np.random.SeedSequence
     slices: np.random.SeedSequence
     """Where a slice is cut from a clip when the learner asked without observing one (a chosen query)."""
+    display: np.random.SeedSequence
+    """The layout every query's clips are shown from (`hipref.teach.clips.CandidateClips`)."""
 
 
 def session_streams(config: TeachConfig) -> SessionStreams:
-    return SessionStreams(*np.random.SeedSequence([config.seed, 9]).spawn(5))
+    # A child's stream does not depend on how many are spawned: the first five are those of sessions
+    # recorded before the display layout was added.
+    return SessionStreams(*np.random.SeedSequence([config.seed, 9]).spawn(6))
 
 
 def bayes_learner(config: TeachConfig, model: SIModel, seed: int) -> Learner:

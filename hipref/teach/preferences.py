@@ -1,20 +1,23 @@
 """Preferences with a person as the teacher: queries shown as two clips, answers stored, then told.
 
 The learner is notebook 12's Bayesian learner (by default) or PESI (Algorithm 2). Each query is two
-candidates from Phi and a slice tau of the clip pi^l executes with one of them. The person sees the clips
-of both candidates from one layout, side by side and looping, on sides drawn at random (the candidates'
-values are never shown: the person judges the motion), and answers 'left', 'right' or "can't tell". The
-answer is appended to the session file before the learner is told; "can't tell" is stored and told as
-'equally good' (PESI has no label for it and only counts it; the Bayesian learner reads it as the truth
-lying near the pair's midpoint).
+candidates from Phi and a slice tau of the clip pi^l executes with one of them from the query's layout.
+The person sees the clips of both candidates from the session's display layout, side by side and looping,
+on sides drawn at random (the candidates' values are never shown: the person judges the motion), and
+answers 'left', 'right' or "can't tell". The answer is appended to the session file before the learner is
+told; "can't tell" is stored and told as 'equally good' (PESI has no label for it and only counts it; the
+Bayesian learner reads it as the truth lying near the pair's midpoint).
 
-So that the next pair is on screen as soon as the person answers, it is executed and rendered in a
-background thread while the person watches the current one. With uniformly drawn candidates the next
-query does not depend on the answer, so it is prepared once, the learner being asked one query ahead. With
-a chosen query rule it does: the next query is prepared for each possible answer ('left' and 'right'
-first), each on a copy of the learner and of the session's random streams, and the copy of the answer
-given is kept. Resuming replays the stored answers in the live order with the stored slices, without
-physics, and rebuilds the learner exactly (`tests/test_teach_session.py`).
+So that the next pair is on screen as soon as the person answers, it is executed and its clips found in
+a background thread while the person watches the current one. A candidate's clip is rendered once per
+session (`CandidateClips`): every query is shown from one display layout, so a candidate asked again is
+shown at once, and while the thread has nothing else to do it renders ahead the candidates nearest the
+running estimate. With uniformly drawn candidates the next query does not depend on the answer, so it is
+prepared once, the learner being asked one query ahead. With a chosen query rule it does: the next query
+is prepared for each possible answer ('left' and 'right' first), each on a copy of the learner and of the
+session's random streams, and the copy of the answer given is kept. Resuming replays the stored answers in
+the live order with the stored slices, without physics, and rebuilds the learner exactly
+(`tests/test_teach_session.py`).
 
 With `catch_every`, every catch_every-th query is a catch trial instead of the learner's: the candidate
 nearest the truth against the end of the range farthest from it (`catch_pair`), shown like any query. Its
@@ -37,7 +40,7 @@ from hipref.envs.task import Clip, Layout, clip
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
 from hipref.learners.sysid import CandidateSet
-from hipref.teach.clips import annotated_frames, side_by_side_gif
+from hipref.teach.clips import CandidateClips
 from hipref.teach.config import TeachConfig
 from hipref.teach.learner import (
     Learner,
@@ -86,8 +89,9 @@ class ShownQuery:
     """The clip tau was cut from."""
     order: tuple[int, ...]
     """order[s]: the index in `query.candidates` of the candidate shown on side s (left, right)."""
-    animation: bytes | None
-    """The candidates' clips side by side in `order`, a looping GIF; None without GL or when replayed."""
+    animations: tuple[bytes, ...] | None
+    """The candidates' clips in `order` (left, right), each a looping GIF; None without GL or when
+    replayed."""
     catch: bool = False
     """A catch trial (`catch_pair`): stored, not told to the learner."""
 
@@ -156,6 +160,11 @@ class PreferenceTeaching:
             np.random.default_rng(streams.slices),
         )
         self.evaluation = evaluation_slices(config, self._task)
+        display = self._task.sample_layout(np.random.default_rng(streams.display))
+        self.candidate_clips = CandidateClips(
+            config.domain, self._task, self.truth, display, config.frames, config.fps
+        )
+        """Used by the thread preparing queries only, as `_task` is."""
         self.initial_estimate = running_estimate(self._asker.learner, self.evaluation)
         """The estimate before any answer: what the controller had without the person."""
         # A chosen query rule makes the next query depend on the answer.
@@ -164,6 +173,9 @@ class PreferenceTeaching:
         self._next: dict[str, Future[tuple[Asker, ShownQuery]]] = {}
         self._answers_given = 0
         self._last_answer: str | None = None
+        self._ahead: Future[None] | None = None
+        self._ahead_token = 0
+        """Changed to stop the rendering ahead (`_render_ahead`)."""
         """Answers given in this process, and the last: a query prepared for another answer than the one
         given is not rendered."""
         self.current: ShownQuery | None = None
@@ -194,9 +206,11 @@ class PreferenceTeaching:
         record: dict[str, Any] | None,
         asker: Asker,
         wanted: Callable[[], bool] = lambda: True,
+        clips: CandidateClips | None = None,
     ) -> ShownQuery:
         """Ask `asker`'s learner for query `number`; from `record`'s slice when it was answered. Its clips
-        are rendered unless `wanted()` says by then that the query will not be shown."""
+        are found in `clips` (the session's by default), rendered there unless `wanted()` says by then that
+        the query will not be shown."""
         layout: Layout = self._task.sample_layout(asker.layouts)
         executed: list[Clip] = []
         if record is None:
@@ -232,19 +246,13 @@ class PreferenceTeaching:
                 f"in order {record['order']}, but this session asks {list(query.candidates)} in order "
                 f"{list(order)}: the file was written by another version of the study"
             )
-        animation = None
+        animations = None
         if record is None and self.render and wanted():
-            domain = self.config.domain
-            frames = [
-                annotated_frames(
-                    domain, self._task, self.truth, query.candidates[i], layout, self.config.frames
-                )
-                for i in order
-            ]
-            clips = [f for f in frames if f is not None]
-            if len(clips) == len(frames):
-                animation = side_by_side_gif(clips, self.config.fps)
-        return ShownQuery(number, query, executed[0], order, animation, catch)
+            found = [(clips or self.candidate_clips).gif(query.candidates[i]) for i in order]
+            animations = tuple(gif for gif in found if gif is not None)
+            if len(animations) != len(found):
+                animations = None
+        return ShownQuery(number, query, executed[0], order, animations, catch)
 
     def is_catch(self, number: int) -> bool:
         """Whether query `number` (from 0) is a catch trial."""
@@ -253,10 +261,26 @@ class PreferenceTeaching:
 
     def prepare_apart(self, number: int) -> ShownQuery:
         """Query `number` asked, executed and rendered on a copy of the session's learner and streams,
-        nothing kept: what a query costs when nothing was prepared ahead (`hipref.bench.teach`). Waits for
-        the query being prepared in the background first: both execute on the session's task."""
-        wait(self._next.values())
-        return self._prepare(number, None, copy.deepcopy(self._asker))
+        nothing kept, its clips rendered afresh: what a query costs when nothing was prepared ahead
+        (`hipref.bench.teach`). Waits for the background thread's work first: both execute on the session's
+        task."""
+        self._ahead_token += 1
+        pending: list[Future[Any]] = [*self._next.values()]
+        wait(pending + ([self._ahead] if self._ahead else []))
+        clips = self.candidate_clips
+        fresh = CandidateClips(clips.domain, self._task, self.truth, clips.layout, clips.frames, clips.fps)
+        return self._prepare(number, None, copy.deepcopy(self._asker), clips=fresh)
+
+    def _submit(self, job: Callable[..., Any], *args: Any) -> Future[Any]:
+        return self._executor.submit(job, *args)
+
+    def _render_ahead(self, nearest_first: list[float], token: int) -> None:
+        """Render the clips of `nearest_first` not rendered yet, one after another, until `_ahead_token`
+        changes: the person answered (the next query's preparation comes first) or the session closes."""
+        for candidate in nearest_first:
+            if self._ahead_token != token or not self.candidate_clips.available:
+                return
+            self.candidate_clips.gif(candidate)
 
     def _branch(
         self, asker: Asker, shown: ShownQuery, answer: str | None, answers_given: int
@@ -272,20 +296,25 @@ class PreferenceTeaching:
 
     def _prefetch(self) -> None:
         """Start preparing the query after the current one, if the session plans one: once, or for each
-        possible answer (on copies) when the next query depends on it."""
+        possible answer (on copies) when the next query depends on it; then render clips ahead, the
+        candidates nearest the running estimate first."""
         self._next = {}
         if self.current is None or self.current.number + 1 >= self.config.preference_queries:
             return
+        values = domain_spec(self.config.domain).candidates.values
+        order = np.argsort(np.abs(values - self.estimate()), kind="stable")
+        nearest_first = [float(v) for v in values[order]]
+        given = self._answers_given
         if not self.answer_dependent:
             # Asked one ahead on the live learner; it is told the current answer once this is done.
-            future = self._executor.submit(self._branch, self._asker, self.current, None, self._answers_given)
+            future = self._submit(self._branch, self._asker, self.current, None, given)
             self._next = dict.fromkeys(ANSWERS, future)
-            return
-        for answer in ANSWERS:
-            branch = copy.deepcopy(self._asker)
-            self._next[answer] = self._executor.submit(
-                self._branch, branch, self.current, answer, self._answers_given
-            )
+        else:
+            for answer in ANSWERS:
+                branch = copy.deepcopy(self._asker)
+                self._next[answer] = self._submit(self._branch, branch, self.current, answer, given)
+        if self.render:
+            self._ahead = self._submit(self._render_ahead, nearest_first, self._ahead_token)
 
     def _replay(self, records: list[dict[str, Any]]) -> None:
         """Rebuild the learner from the stored answers, in the live order: ask k + 1 then tell k (uniform
@@ -327,6 +356,7 @@ class PreferenceTeaching:
         # count, which `wanted` reads first: a branch that sees the new count sees the new answer.
         self._last_answer = answer if self.answer_dependent else None
         self._answers_given += 1
+        self._ahead_token += 1
         for other in self._next.values():
             if other is not branch:
                 other.cancel()
@@ -348,5 +378,6 @@ class PreferenceTeaching:
         return time.perf_counter() - start
 
     def close(self) -> None:
-        """Stop the background thread (after the query it is preparing)."""
+        """Stop the background thread (after the query or clip it is preparing)."""
+        self._ahead_token += 1
         self._executor.shutdown(wait=True, cancel_futures=True)
