@@ -73,7 +73,15 @@ def test_same_seed_gives_identical_rows(tmp_path: object, monkeypatch: pytest.Mo
         assert (first["metric"] == "cells_wiped").all() and (first["value"] >= 0).all()
 
 
-def test_config_is_hashable_into_cells() -> None:
-    config = R1Config()
-    assert dataclasses.replace(config, seeds=3).seeds == 3
-    assert hash(R1Cell(config, "tabular_coach", 1))
+def test_equal_configs_make_equal_cells_and_any_changed_field_another_cell() -> None:
+    # Cells key the sweep's cache: two separately built equal cells must be one key, any change another.
+    cell = R1Cell(R1Config(), "tabular_coach", 1)
+    same = R1Cell(R1Config(), "tabular_coach", 1)
+    assert same is not cell and same == cell and hash(same) == hash(cell) and {cell: "rows"}[same] == "rows"
+    changed = [
+        R1Cell(dataclasses.replace(R1Config(), seeds=3), "tabular_coach", 1),
+        R1Cell(dataclasses.replace(R1Config(), desk_height=0.71), "tabular_coach", 1),
+        R1Cell(R1Config(), "pretrained_coach", 1),
+        R1Cell(R1Config(), "tabular_coach", 2),
+    ]
+    assert len({cell, same, *changed}) == 1 + len(changed)
