@@ -61,10 +61,16 @@ def test_a_push_is_executed_whole():
         task.rollout(12.0, 12.0, layout, periods=5)
 
 
-def test_a_probing_slice_has_h_periods_of_features(task):
+def test_a_probing_slice_has_h_periods_of_features_that_depend_on_the_true_parameter(task):
+    # Same generator, so the same estimate, layout and place: only the truth differs between the two.
     low, high = task.parameter_range
-    tau = probe_slice(task, (low + high) / 2, 3, np.random.default_rng(2))
-    assert tau.shape == (3 * 21,)
+    near_low = probe_slice(task, low + 0.1 * (high - low), 3, np.random.default_rng(2))
+    near_high = probe_slice(task, high - 0.1 * (high - low), 3, np.random.default_rng(2))
+    assert near_low.shape == near_high.shape == (3 * 21,) and np.isfinite(near_low).all()
+    assert not np.array_equal(near_low, near_high)
+    np.testing.assert_array_equal(
+        probe_slice(task, low + 0.1 * (high - low), 3, np.random.default_rng(2)), near_low
+    )
 
 
 def test_a_clip_is_rendered_frame_by_frame_where_gl_is(task):
