@@ -334,9 +334,9 @@ def test_the_estimated_noise_level_sets_each_preferences_forget_number() -> None
     coteaching_updates = _filter(learner).si_updates[8:]
     assert len(learner.noise_history) == len(coteaching_updates) == 24 - 8
     for level, record in zip(learner.noise_history, coteaching_updates, strict=True):
-        assert len(record.forgotten) == min(
-            math.floor(level * len(record.batch) + 0.5), len(record.batch) - 1
-        )
+        # The count nearest e B (no ramp), unless that would leave nothing to learn from.
+        forgotten, batch = len(record.forgotten), len(record.batch)
+        assert abs(forgotten - level * batch) <= 0.5 or (forgotten == batch - 1 and level * batch > batch - 1)
     assert len(set(learner.noise_history)) > 1  # the level does change as D grows
 
 

@@ -1,6 +1,7 @@
 """The Table 3 study: deterministic, shaped by the results contract, and guarded against bad parameters."""
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -13,7 +14,6 @@ from hipref.experiments.noise_estimation import (
     PAPER_TABLE3,
     TABLE3_COLUMNS,
     NoiseEstimationConfig,
-    dataset_rng,
     error_trend,
     overestimate,
     paper_distance,
@@ -23,6 +23,7 @@ from hipref.experiments.noise_estimation import (
 )
 from hipref.learners.noise_estimation import CONFLICTS, estimate_noise
 from hipref.results import TIDY_COLUMNS, check_tidy
+from hipref.sweep import NO_CACHE
 from tests._clips import shown
 
 SMALL = NoiseEstimationConfig(n_preferences=64, repetitions=5, noise_levels=(0.1, 0.25, 0.4), seed=3)
@@ -78,16 +79,42 @@ def test_rows_are_tidy_with_one_estimate_and_one_true_noise_per_dataset_and_esti
     assert set(rows["n_candidates"]) == {5}
 
 
-def test_every_estimator_estimates_the_same_datasets() -> None:
-    rows = run(SMALL).set_index(["noise", "seed", "method", "metric"])["value"]
-    for true_noise, repetition in ((0.1, 0), (0.4, 4)):
-        rng = dataset_rng(SMALL.seed, true_noise, repetition)
-        data = random_preferences(SMALL.n_preferences, true_noise, SMALL.candidates, rng)
+def test_every_estimator_estimates_the_same_datasets(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Every dataset drawn, and the dataset each estimator is handed, recorded by identity.
+    drawn: list[object] = []
+    seen: dict[str, list[int]] = {}
+
+    def draw(*args: object) -> object:
+        drawn.append(random_preferences(*args))  # type: ignore[arg-type]
+        return drawn[-1]
+
+    def spy(method: str, estimator: Callable[..., float]) -> Callable[..., float]:
+        def estimate(data: object, *args: object) -> float:
+            seen.setdefault(method, []).append(id(data))
+            return estimator(data, *args)
+
+        return estimate
+
+    monkeypatch.setattr(noise_estimation, "random_preferences", draw)
+    monkeypatch.setattr(
+        noise_estimation,
+        "estimate_noise",
+        lambda data, conflict: spy(METHODS[conflict], estimate_noise)(data, conflict),
+    )
+    monkeypatch.setattr(noise_estimation, "ESTIMATORS", {m: spy(m, e) for m, e in ESTIMATORS.items()})
+    rows = run(SMALL, cache_dir=NO_CACHE).set_index(["noise", "seed", "method", "metric"])["value"]
+    assert len(drawn) == len({id(d) for d in drawn}) == SMALL.repetitions * len(SMALL.noise_levels)
+    assert set(seen) == {*METHODS.values(), *ESTIMATORS}
+    assert all(ids == [id(d) for d in drawn] for ids in seen.values())
+    # And each method's row holds that method's estimate of its dataset (dataset k: level k // 5, seed k % 5).
+    for k, data in enumerate(drawn):
+        noise = SMALL.noise_levels[k // SMALL.repetitions]
         for conflict, method in METHODS.items():
-            assert rows[(true_noise, repetition, method, "estimated_noise")] == estimate_noise(data, conflict)
+            expected = estimate_noise(data, conflict)  # type: ignore[arg-type]
+            assert rows[(noise, k % SMALL.repetitions, method, "estimated_noise")] == expected
         for method, estimator in ESTIMATORS.items():
-            estimate = estimator(data, SMALL.candidates)
-            assert rows[(true_noise, repetition, method, "estimated_noise")] == estimate
+            expected = estimator(data, SMALL.candidates)  # type: ignore[arg-type]
+            assert rows[(noise, k % SMALL.repetitions, method, "estimated_noise")] == expected
 
 
 def test_the_candidates_are_the_papers_example_unless_told_otherwise() -> None:

@@ -92,15 +92,21 @@ def test_eq3_with_two_candidates_equals_eq2_in_value_and_gradient() -> None:
     torch.testing.assert_close(grad_eq2, grad_eq3)
 
 
-def test_eq3_moves_weight_to_the_preferred_candidate_without_changing_the_total() -> None:
-    queried = log_probs(torch.randn(1, 41), torch.tensor([[0, 1, 2, 3]]))
-    y_vec = torch.tensor([[-1 / 3, -1 / 3, 1.0, -1 / 3]])
-    probs = queried.exp()
-    weights = probs + 0.25 * y_vec  # the weights of our reading of Eq. 3
-    torch.testing.assert_close(weights.sum(), torch.tensor(1.0))
-    torch.testing.assert_close(weights - probs, torch.tensor([[-0.25 / 3, -0.25 / 3, 0.25, -0.25 / 3]]))
-    expected = -(queried * weights).sum()
-    torch.testing.assert_close(pesi_loss_n(queried, y_vec, 0.25), expected)
+def test_eq3s_gradient_on_the_queried_logits_is_minus_p_y_so_a_step_moves_weight_to_the_preferred() -> None:
+    # By hand: with the weights w = Pr + p y held fixed and summing to one (the y_i sum to zero), the gradient
+    # of -sum_i w_i log softmax(z)_i with respect to z_j is -(w_j - Pr_j sum_i w_i) = -p y_j, the same for
+    # every Pr; averaged over a batch of B it is -p y / B. The unqueried logits get no gradient.
+    generator = torch.Generator().manual_seed(4)
+    logits = torch.randn(2, 41, generator=generator, requires_grad=True)
+    indices = torch.tensor([[0, 1, 2, 3], [40, 7, 9, 5]])
+    y_vec = torch.tensor([[-1 / 3, -1 / 3, 1.0, -1 / 3], [1.0, -1 / 3, -1 / 3, -1 / 3]])
+    (grad,) = torch.autograd.grad(pesi_loss_n(log_probs(logits, indices), y_vec, 0.25), logits)
+    expected = torch.zeros(2, 41).scatter(1, indices, -0.25 * y_vec / 2)
+    torch.testing.assert_close(grad, expected)
+    # A gradient step therefore raises the preferred candidate's share among the queried and lowers the rest.
+    before = torch.softmax(logits.detach().gather(1, indices), dim=1)
+    after = torch.softmax((logits.detach() - grad).gather(1, indices), dim=1)
+    assert torch.equal((after > before), y_vec > 0)
 
 
 def test_standard_ce_is_cross_entropy_among_the_queried_candidates() -> None:
@@ -284,9 +290,15 @@ def test_uniform_sampling_asks_about_the_whole_of_phi_and_belief_sampling_near_t
 
 
 def test_pr_over_all_of_phi_is_the_full_softmax_at_the_queried_candidates() -> None:
-    logits = torch.randn(3, 41)
+    # Brute force in numpy: Pr over all of Phi divides by the sum over the 41 candidates, Pr over the query
+    # by the sum over the queried pair only.
+    logits = torch.randn(3, 41, generator=torch.Generator().manual_seed(1), dtype=torch.float64)
     pairs = torch.tensor([[0, 5], [7, 2], [40, 39]])
-    torch.testing.assert_close(log_probs(logits, pairs, "all"), torch.log_softmax(logits, 1).gather(1, pairs))
-    assert torch.allclose(log_probs(logits, pairs, "query").exp().sum(1), torch.ones(3))
+    z, rows = logits.numpy(), np.arange(3)[:, None]
+    queried = np.exp(z[rows, pairs.numpy()])
+    over_all = np.log(queried / np.exp(z).sum(axis=1, keepdims=True))
+    over_pair = np.log(queried / queried.sum(axis=1, keepdims=True))
+    np.testing.assert_allclose(log_probs(logits, pairs, "all").numpy(), over_all, rtol=1e-12)
+    np.testing.assert_allclose(log_probs(logits, pairs, "query").numpy(), over_pair, rtol=1e-12)
     with pytest.raises(ValueError, match="pr_domain must be one of"):
         log_probs(logits, pairs, "some")

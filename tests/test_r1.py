@@ -62,7 +62,9 @@ def test_config_refuses_bad_values_naming_the_parameter(field: str, value: objec
         R1Config(**{field: value})
 
 
-def test_same_seed_gives_identical_rows(tmp_path: object, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_same_seed_gives_identical_rows_and_another_seed_other_rows(
+    tmp_path: object, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("HIPREF_CACHE_DIR", str(tmp_path))
     config = R1Config(episodes=2, max_steps=4, seeds=1, demos=2, demo_goals=1, bc_epochs=2, hidden=8)
     for method in METHODS:
@@ -71,9 +73,24 @@ def test_same_seed_gives_identical_rows(tmp_path: object, monkeypatch: pytest.Mo
         pd.testing.assert_frame_equal(first, second)
         assert list(first.columns[:7]) == ["domain", "method", "noise", "seed", "episode", "metric", "value"]
         assert (first["metric"] == "cells_wiped").all() and (first["value"] >= 0).all()
+        assert (first["value"] <= WipingGrid().n_states).all()  # a count of the grid's cells
+    # The seed does reach the run: another seed draws other actions, so other strokes and physics steps.
+    other = run_cell(R1Cell(config, "tabular_coach", 8))
+    first = run_cell(R1Cell(config, "tabular_coach", 7))
+    assert not first[["value", "decisions", "physics_steps"]].equals(
+        other[["value", "decisions", "physics_steps"]]
+    )
 
 
-def test_config_is_hashable_into_cells() -> None:
-    config = R1Config()
-    assert dataclasses.replace(config, seeds=3).seeds == 3
-    assert hash(R1Cell(config, "tabular_coach", 1))
+def test_equal_configs_make_equal_cells_and_any_changed_field_another_cell() -> None:
+    # Cells key the sweep's cache: two separately built equal cells must be one key, any change another.
+    cell = R1Cell(R1Config(), "tabular_coach", 1)
+    same = R1Cell(R1Config(), "tabular_coach", 1)
+    assert same is not cell and same == cell and hash(same) == hash(cell) and {cell: "rows"}[same] == "rows"
+    changed = [
+        R1Cell(dataclasses.replace(R1Config(), seeds=3), "tabular_coach", 1),
+        R1Cell(dataclasses.replace(R1Config(), desk_height=0.71), "tabular_coach", 1),
+        R1Cell(R1Config(), "pretrained_coach", 1),
+        R1Cell(R1Config(), "tabular_coach", 2),
+    ]
+    assert len({cell, same, *changed}) == 1 + len(changed)

@@ -18,7 +18,7 @@ from hipref.learners.filters import (
     UpdateLog,
 )
 from hipref.learners.losses import conservative_pesi_loss, pesi_loss, preference_nll, unbiased_pesi_loss
-from hipref.learners.noise_rate import FlipRate, Likelihood, likelihood_noise
+from hipref.learners.noise_rate import FlipRate, Likelihood
 from hipref.learners.pesi import PESI_FILTER, TRUSTING, PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
@@ -103,6 +103,36 @@ def _teach(learner: object, truth: float, noise: float, n: int, seed: int = 2) -
     return teacher
 
 
+def _teach_recording(learner: PESILearner, truth: float, noise: float, n: int) -> np.ndarray:
+    """`_teach`, returning what was asked and answered: one row (first, second, label) per preference."""
+    teacher = ScriptedPreferenceTeacher(truth, noise, np.random.default_rng(2))
+    told = []
+    for _ in range(n):
+        query = learner.ask(shown(FEATURES))
+        label = teacher.answer(query)
+        learner.tell(query, label)
+        told.append((*query.candidates[:2], label))
+    return np.array(told, dtype=float)
+
+
+def _brute_force_rate(told: np.ndarray, low: float, high: float, cap: float) -> float:
+    """The maximum marginal likelihood flip rate by brute force: the likelihood of every rate on the 1001
+    grid averaged over 8001 evenly spaced truths in [low, high] (no intervals between midpoints), capped."""
+    truths = np.linspace(low, high, 8001)[:, None]
+    first, second, label = told.T
+    clean = np.where(np.abs(first - truths) < np.abs(second - truths), 1.0, -1.0)
+    wrong = (clean != label).sum(axis=1)[:, None]
+    rates = np.linspace(0.0, 0.5, 1001)[None, :]
+    with np.errstate(divide="ignore"):
+        log_terms = (len(label) - wrong) * np.log1p(-rates) + np.where(wrong > 0, wrong * np.log(rates), 0.0)
+    peak = log_terms.max(axis=0)  # -inf at e = 0 unless one truth explains every answer
+    with np.errstate(invalid="ignore"):
+        log_likelihood = np.where(
+            np.isfinite(peak), peak + np.log(np.exp(log_terms - peak).sum(axis=0)), -np.inf
+        )
+    return min(cap, float(rates[0, np.argmax(log_likelihood)]))
+
+
 def test_a_perfect_filters_precision_and_recall_are_1_on_a_constructed_batch() -> None:
     learner = _learner(SmallLoss(), ESTIMATED)
     _teach(learner, 0.7, 0.0, 6)
@@ -115,10 +145,11 @@ def test_a_perfect_filters_precision_and_recall_are_1_on_a_constructed_batch() -
 
 def test_the_small_loss_filter_forgets_the_estimated_share_with_the_largest_loss_under_si() -> None:
     learner = _learner(SmallLoss(), ESTIMATED, learning_rate=0.1)
-    _teach(learner, 0.8, 0.2, 60)
+    told = _teach_recording(learner, 0.8, 0.2, 60)
     record, rate = _log(learner).si_updates[-1], learner.noise_history[-1]
-    assert len(record.forgotten) == math.floor(rate * len(record.batch) + 0.5)
-    assert rate == pytest.approx(min(0.4, likelihood_noise(learner.buffer_preferences(), 0.5, 0.9)))
+    assert abs(len(record.forgotten) - rate * len(record.batch)) <= 0.5  # the nearest count
+    assert rate == pytest.approx(_brute_force_rate(told, 0.5, 0.9, 0.4), abs=1.5e-3)
+    assert 0.1 < rate < 0.3  # 20 % of the answers were flipped
     with torch.no_grad():
         queried, labels = learner.queried(record.batch)
         losses = preference_nll(queried, labels[:, 0])
@@ -140,11 +171,13 @@ def test_rime_trusts_small_losses_flips_very_large_ones_and_leaves_out_the_rest(
     trust_flip = _trust_flip(
         _learner(TrustFlip(trust_spread_start=2.0, trust_spread_end=1.0, trust_spread_decay=0.5))
     )
+    # By hand: losses (0, 1) have the sample standard deviation sqrt(1/2); beta_t = max(1, 2 - t / 2).
     losses = torch.tensor([0.0, 1.0])
-    spread = float(losses.std())
-    assert trust_flip.trust_threshold(losses) == pytest.approx(math.log(2) + 2.0 * spread)
+    assert trust_flip.trust_threshold(losses) == pytest.approx(math.log(2) + 2.0 * math.sqrt(0.5))
+    trust_flip.filtered_updates = 1
+    assert trust_flip.trust_threshold(losses) == pytest.approx(math.log(2) + 1.5 * math.sqrt(0.5))
     trust_flip.filtered_updates = 10  # decayed to its floor
-    assert trust_flip.trust_threshold(losses) == pytest.approx(math.log(2) + 1.0 * spread)
+    assert trust_flip.trust_threshold(losses) == pytest.approx(math.log(2) + 1.0 * math.sqrt(0.5))
     # In a run: every left-out or flipped entry of an update is recorded as forgotten.
     learner = _learner(TrustFlip(), learning_rate=0.1)
     _teach(learner, 0.8, 0.3, 60)
@@ -158,11 +191,13 @@ def test_rime_trusts_small_losses_flips_very_large_ones_and_leaves_out_the_rest(
 
 def test_the_unbiased_learner_estimates_the_rate_by_marginal_likelihood_before_each_update() -> None:
     learner = _learner(flip_rate=ESTIMATED, loss="unbiased")
-    _teach(learner, 0.6, 0.2, 30)
+    told = _teach_recording(learner, 0.6, 0.2, 30)
     assert len(learner.noise_history) == 30 - 8
-    assert learner.noise_history[-1] == pytest.approx(
-        min(0.4, likelihood_noise(learner.buffer_preferences(), 0.5, 0.9))
-    )
+    # Before each update, on the preferences told so far (the first update comes with the 9th).
+    for k in (9, 20, 30):
+        assert learner.noise_history[k - 9] == pytest.approx(
+            _brute_force_rate(told[:k], 0.5, 0.9, 0.4), abs=1.5e-3
+        )
 
 
 def test_label_smoothing_learns_from_clean_preferences() -> None:
@@ -175,11 +210,9 @@ def test_label_smoothing_learns_from_clean_preferences() -> None:
 def test_co_pesi_likelihood_forgets_the_marginal_likelihood_rate_of_its_buffer() -> None:
     model = SIModel(input_dim=4, candidates=DESK_HEIGHT, hidden_sizes=(16,), seed=0)
     learner = PESILearner(model, PESIConfig(history=1, start_size=8), 0, CoTeaching(rounds=2), Likelihood())
-    _teach(learner, 0.7, 0.25, 30)
+    told = _teach_recording(learner, 0.7, 0.25, 30)
     assert len(learner.noise_history) == 30 - 8
-    assert learner.noise_history[-1] == pytest.approx(
-        likelihood_noise(learner.buffer_preferences(), 0.5, 0.9)
-    )
+    assert learner.noise_history[-1] == pytest.approx(_brute_force_rate(told, 0.5, 0.9, 0.5), abs=1.5e-3)
 
 
 @pytest.mark.parametrize(

@@ -33,13 +33,16 @@ def test_a_slice_is_cut_from_the_whole_clip_at_a_uniform_place(domain, truth, es
     task = TASKS[domain]()
     layout = task.sample_layout(np.random.default_rng(5))
     whole = task.rollout(truth, estimate, layout).features
-    firsts = []
+    places = len(whole) - 2  # where a slice of 3 periods can start
+    starts = []
     for seed in range(40):
-        tau = clip(task, truth, estimate, layout, 3, np.random.default_rng(seed)).tau
-        first = int(np.random.default_rng(seed).integers(0, len(whole) - 2))
-        np.testing.assert_array_equal(tau, whole[first : first + 3].reshape(-1))
-        firsts.append(first)
-    assert max(firsts) > len(whole) / 2  # slices from the clip's second half too
+        cut = clip(task, truth, estimate, layout, 3, np.random.default_rng(seed))
+        # Brute force: every place of the whole clip whose 3 periods are the slice, bit for bit.
+        found = [f for f in range(places) if np.array_equal(cut.tau, whole[f : f + 3].reshape(-1))]
+        assert cut.first in found and cut.periods == len(whole)
+        starts.append(cut.first)
+    # Uniform over the places: 40 draws all missing the first or the last quarter has chance 2 * 0.75^40.
+    assert min(starts) < places / 4 and max(starts) >= 3 * places / 4
 
 
 def test_a_replayed_clip_refuses_a_query_it_was_not_executed_for():
@@ -58,10 +61,16 @@ def test_a_push_is_executed_whole():
         task.rollout(12.0, 12.0, layout, periods=5)
 
 
-def test_a_probing_slice_has_h_periods_of_features(task):
+def test_a_probing_slice_has_h_periods_of_features_that_depend_on_the_true_parameter(task):
+    # Same generator, so the same estimate, layout and place: only the truth differs between the two.
     low, high = task.parameter_range
-    tau = probe_slice(task, (low + high) / 2, 3, np.random.default_rng(2))
-    assert tau.shape == (3 * 21,)
+    near_low = probe_slice(task, low + 0.1 * (high - low), 3, np.random.default_rng(2))
+    near_high = probe_slice(task, high - 0.1 * (high - low), 3, np.random.default_rng(2))
+    assert near_low.shape == near_high.shape == (3 * 21,) and np.isfinite(near_low).all()
+    assert not np.array_equal(near_low, near_high)
+    np.testing.assert_array_equal(
+        probe_slice(task, low + 0.1 * (high - low), 3, np.random.default_rng(2)), near_low
+    )
 
 
 def test_a_clip_is_rendered_frame_by_frame_where_gl_is(task):

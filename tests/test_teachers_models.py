@@ -2,6 +2,7 @@
 answers, and a learner storing nothing for an answer without a label."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ import torch
 
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import DESK_HEIGHT, SIModel
+from hipref.teachers import models
 from hipref.teachers.models import EQUAL, SKIP, TEACHER_KINDS, TeacherModel, picture_floor
 from hipref.teachers.preference import PreferenceQuery, ScriptedPreferenceTeacher
 from tests._clips import shown
@@ -158,8 +160,22 @@ def test_invalid_teacher_models_are_refused(params: dict[str, object], message: 
         TeacherModel(**params)
 
 
-def test_every_kind_is_a_teacher_option() -> None:
-    assert set(TEACHER_KINDS) == {"oracle", "mistake", "stochastic", "skip", "equal", "myopic", "distance"}
+def test_every_kind_the_docstring_describes_is_a_teacher_option() -> None:
+    # The kinds the module's docstring gives a rule for, read from its "- 'kind'" items.
+    described = re.findall(r"^- '(\w+)'", models.__doc__ or "", flags=re.MULTILINE)
+    assert len(described) == 7 and set(TEACHER_KINDS) == set(described)
+
+
+@pytest.mark.parametrize("kind", TEACHER_KINDS)
+def test_every_kind_without_flips_prefers_the_truth_over_the_far_end_of_the_range(kind: str) -> None:
+    # Every rule is the oracle changed in one respect, which hardly applies to a candidate at the truth
+    # against one a whole range away: a wrong answer has probability sigmoid(-7) < 0.001 (stochastic),
+    # 0.5 exp(-1 / 0.21) < 0.005 (distance), and, with glimpses of spread 0.5 R, a remembered picture of
+    # spread 0.5 R sqrt(0.1 / 1.9) = 0.11 R past the midpoint, < 1e-5 (myopic); none for the others.
+    for truth, far in ((0.5, 0.9), (0.9, 0.5)):
+        teacher = _teacher(kind, truth=truth, seed=5, glimpse_noise=0.5)
+        answers = _ask(teacher, truth, far, 200) + _ask(teacher, far, truth, 200)
+        assert answers[:200].count(1) + answers[200:].count(-1) >= 396
 
 
 def test_a_learner_stores_nothing_for_skip_or_equal_and_refuses_other_non_labels() -> None:
