@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator, Sequence
+import atexit
+import threading
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
@@ -36,19 +37,48 @@ def watching_camera(
     return camera
 
 
-@contextlib.contextmanager
-def _clip_renderer(model: mujoco.MjModel, height: int, width: int) -> Iterator[mujoco.Renderer]:
+_HELD = threading.local()
+"""Per thread: the clip renderer made last (its model, its size, the renderer), kept for the next clip of
+the same model and size. Making one (a GL context, the meshes uploaded) costs about half as much as the
+20 frames of a clip; a GL context is current in one thread only, hence one per thread."""
+
+
+def _clip_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
     """A renderer without shadows, reflections or multisampling: on a CPU rasteriser (EGL on Mesa's
-    llvmpipe) these take over nine tenths of a frame's time and show nothing a clip needs."""
+    llvmpipe) these take over nine tenths of a frame's time and show nothing a clip needs. The thread's
+    last one if it renders `model` at this size, else a new one (the last one closed)."""
+    held = getattr(_HELD, "renderer", None)
+    if held is not None and held[0] is model and held[1] == (height, width):
+        return held[2]
+    if held is not None:
+        held[2].close()
+        _HELD.renderer = None
     samples = model.vis.quality.offsamples
     model.vis.quality.offsamples = 0  # read when the renderer's framebuffer is made
     try:
-        with mujoco.Renderer(model, height=height, width=width) as renderer:
-            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
-                renderer.scene.flags[flag] = False
-            yield renderer
+        renderer = mujoco.Renderer(model, height=height, width=width)
     finally:
         model.vis.quality.offsamples = samples
+    for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+        renderer.scene.flags[flag] = False
+    _HELD.renderer = (model, (height, width), renderer)
+    if threading.current_thread() is threading.main_thread() and not _AT_EXIT:
+        # After MuJoCo's own exit handler (registered when the first context was made), so run before it:
+        # the context is freed before EGL's display is terminated.
+        atexit.register(release_clip_renderer)
+        _AT_EXIT.append(True)
+    return renderer
+
+
+_AT_EXIT: list[bool] = []
+
+
+def release_clip_renderer() -> None:
+    """Close the calling thread's kept clip renderer, if any: its GL context can be freed only here."""
+    held = getattr(_HELD, "renderer", None)
+    _HELD.renderer = None
+    if held is not None:
+        held[2].close()
 
 
 def clip_frames(
@@ -69,17 +99,17 @@ def clip_frames(
     data = mujoco.MjData(scene.model)
     data.qpos[:] = scene.data.qpos
     try:
-        with _clip_renderer(scene.model, height, width) as renderer:
-            frames = []
-            for k, q in enumerate(arm_positions):
-                data.qpos[scene.arm_qpos] = q
-                if cube_xy is not None:
-                    data.qpos[scene.cube_qpos : scene.cube_qpos + 2] = cube_xy[k]
-                mujoco.mj_kinematics(scene.model, data)
-                mujoco.mj_camlight(scene.model, data)  # the camera and lights follow the bodies
-                renderer.update_scene(data, camera=camera)
-                frames.append(renderer.render().copy())
-            return frames
+        renderer = _clip_renderer(scene.model, height, width)
+        frames = []
+        for k, q in enumerate(arm_positions):
+            data.qpos[scene.arm_qpos] = q
+            if cube_xy is not None:
+                data.qpos[scene.cube_qpos : scene.cube_qpos + 2] = cube_xy[k]
+            mujoco.mj_kinematics(scene.model, data)
+            mujoco.mj_camlight(scene.model, data)  # the camera and lights follow the bodies
+            renderer.update_scene(data, camera=camera)
+            frames.append(renderer.render().copy())
+        return frames
     except Exception as error:  # any GL failure means: no rendering on this machine
         print(f"Rendering skipped: no OpenGL context available ({type(error).__name__}: {error}).")
         return None

@@ -47,9 +47,10 @@ class TeachConfig:
     """Length in high-level steps of the feedback episode (A.7 allows 290; a person's episode is short)."""
     desk_height: float = 0.7
     """Desk height in m of the feedback episode, known to its controller (R1 is about the high level)."""
-    frames: int = 40
-    """Frames of a clip at `fps`: it lasts frames / fps seconds, sped up if the motion is longer."""
-    fps: int = 20
+    frames: int = 20
+    """Frames of a clip at `fps`: it lasts frames / fps seconds, sped up if the motion is longer (rendering
+    is most of what preparing a query costs, so few)."""
+    fps: int = 10
     """Frames per second of the clips."""
     reveal_truth: bool = False
     """Show the true parameter and the estimate's error after each answer."""

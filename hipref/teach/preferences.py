@@ -40,6 +40,7 @@ from hipref.envs.task import Clip, Layout, clip
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import pretrained_model
 from hipref.learners.sysid import CandidateSet
+from hipref.sim.render import release_clip_renderer
 from hipref.teach.clips import CandidateClips
 from hipref.teach.config import TeachConfig
 from hipref.teach.learner import (
@@ -175,11 +176,13 @@ class PreferenceTeaching:
         self._last_answer: str | None = None
         self._ahead: Future[None] | None = None
         self._ahead_token = 0
+        self._closed = False
         """Changed to stop the rendering ahead (`_render_ahead`)."""
         """Answers given in this process, and the last: a query prepared for another answer than the one
         given is not rendered."""
         self.current: ShownQuery | None = None
-        self._replay(session.of_kind("preference"))
+        # On the thread that prepares every later query: the clips' GL context is that thread's.
+        self._submit(self._replay, session.of_kind("preference")).result()
 
     @property
     def learner(self) -> Learner:
@@ -378,6 +381,13 @@ class PreferenceTeaching:
         return time.perf_counter() - start
 
     def close(self) -> None:
-        """Stop the background thread (after the query or clip it is preparing)."""
+        """Stop the background thread (after the query or clip it is preparing), its GL context freed."""
+        if self._closed:
+            return
+        self._closed = True
         self._ahead_token += 1
-        self._executor.shutdown(wait=True, cancel_futures=True)
+        waiting: list[Future[Any]] = [*self._next.values()]
+        for future in waiting + ([self._ahead] if self._ahead else []):
+            future.cancel()
+        self._submit(release_clip_renderer)
+        self._executor.shutdown(wait=True)
