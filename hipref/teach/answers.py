@@ -39,7 +39,7 @@ PERSON: tuple[str, ...] = ("participant", "session")
 
 MIN_VIEWING_SECONDS = 1.0
 """Answers faster than this (s) are too fast to have watched the clips: half a loop of the default clips
-(40 frames at 20 fps, 2 s). The scripted stand-in answers at once (0 s is recorded)."""
+(20 frames at 10 fps, 2 s). The scripted stand-in answers at once (0 s is recorded)."""
 
 DISTANCE_BINS: tuple[float, ...] = (0.0, 0.125, 0.25, 0.5, 1.0)
 """Edges of the psychometric curve's bins of |a - b|, as a share of the domain's parameter range."""
