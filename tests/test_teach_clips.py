@@ -3,6 +3,8 @@ strip from the cube to its goal; the questions name the task and the feedback gr
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -47,3 +49,10 @@ def test_the_strip_puts_the_cube_before_its_goal_when_short_and_after_it_when_pa
 def test_each_question_names_its_task_and_the_grid_says_the_move_is_executed_anyway():
     assert "wiping the desk" in QUESTIONS["wiping"] and "pushing the cube" in QUESTIONS["pushing"]
     assert "executed whatever you answer" in GRID_LEGEND and "wiped cell" in GRID_LEGEND
+
+
+def test_the_committed_notebook_09_keeps_no_clip_in_its_widgets_state():
+    """The stand-in's clips are dropped from the widgets once answered (`PreferenceApp.clear_clips`): a GIF
+    (base64 'R0lGOD') left in the saved widget state would make the notebook hundreds of KB larger."""
+    notebook = Path(__file__).resolve().parents[1] / "notebooks" / "09_teach.ipynb"
+    assert "R0lGOD" not in notebook.read_text()

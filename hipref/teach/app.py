@@ -208,6 +208,11 @@ class PreferenceApp(AnswerPanel):
         children = [self.heading, self.clips, buttons, self.progress, self.status]
         self._build("hipref-preferences", children, "← → ↓", teaching.config.teacher)
 
+    def clear_clips(self) -> None:
+        """Drop the clips from the widgets: a notebook saved with its widgets' state would keep them."""
+        for image in self.clips.children:
+            image.value = b""
+
     def _finished(self) -> bool:
         return self.teaching.current is None
 
