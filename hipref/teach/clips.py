@@ -1,4 +1,7 @@
-"""Two clips side by side as a looping animated GIF, each frame marked with what a person needs to judge it.
+"""Clips as looping animated GIFs, each frame marked with what a person needs to judge it.
+
+A preference query shows one GIF per candidate, each rendered once per session (`CandidateClips`); the
+task before and after a session is one GIF of two clips side by side (`side_by_side_gif`).
 
 Without marks a desk guessed too low (the sponge pressing too hard) looks like normal wiping, and a cube
 stopping short of an unmarked goal looks like any push. So each wiping frame carries a gauge of the contact
