@@ -39,8 +39,8 @@ def watching_camera(
 
 _HELD = threading.local()
 """Per thread: the clip renderer made last (its model, its size, the renderer), kept for the next clip of
-the same model and size. Making one (a GL context, the meshes uploaded) costs about half as much as the
-20 frames of a clip; a GL context is current in one thread only, hence one per thread."""
+the same model and size. Making one (a GL context, the meshes uploaded) costs about a third of a
+20-frame clip; a GL context is current in one thread only, hence one per thread."""
 
 
 def _clip_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:

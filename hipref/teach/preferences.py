@@ -174,12 +174,12 @@ class PreferenceTeaching:
         self._next: dict[str, Future[tuple[Asker, ShownQuery]]] = {}
         self._answers_given = 0
         self._last_answer: str | None = None
-        self._ahead: Future[None] | None = None
-        self._ahead_token = 0
-        self._closed = False
-        """Changed to stop the rendering ahead (`_render_ahead`)."""
         """Answers given in this process, and the last: a query prepared for another answer than the one
         given is not rendered."""
+        self._ahead: Future[None] | None = None
+        self._ahead_token = 0
+        """Changed to stop the rendering ahead (`_render_ahead`)."""
+        self._closed = False
         self.current: ShownQuery | None = None
         # On the thread that prepares every later query: the clips' GL context is that thread's.
         self._submit(self._replay, session.of_kind("preference")).result()
