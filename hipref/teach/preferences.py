@@ -304,9 +304,11 @@ class PreferenceTeaching:
         self._next = {}
         if self.current is None or self.current.number + 1 >= self.config.preference_queries:
             return
-        values = domain_spec(self.config.domain).candidates.values
-        order = np.argsort(np.abs(values - self.estimate()), kind="stable")
-        nearest_first = [float(v) for v in values[order]]
+        nearest_first: list[float] = []
+        if self.render:  # read before the uniform rule's branch asks on the live learner
+            values = domain_spec(self.config.domain).candidates.values
+            order = np.argsort(np.abs(values - self.estimate()), kind="stable")
+            nearest_first = [float(v) for v in values[order]]
         given = self._answers_given
         if not self.answer_dependent:
             # Asked one ahead on the live learner; it is told the current answer once this is done.
