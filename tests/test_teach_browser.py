@@ -104,6 +104,27 @@ def browser_available() -> None:
         pytest.skip("no browser: Debian's chromium or Playwright's Python client is not installed")
 
 
+LAB_SETTINGS = {
+    # Every cell attached to the page: JupyterLab's default ("contentVisibility") skips rendering the cells
+    # out of view, and the browser then counts a query scrolled out of view as hidden.
+    "@jupyterlab/notebook-extension/tracker": {"windowingMode": "none"},
+    "@jupyterlab/apputils-extension/notification": {"fetchNews": "false"},
+}
+
+
+def lab_settings(directory: Path) -> dict[str, str]:
+    """JupyterLab's user settings and workspaces in `directory`: each test's server starts from
+    `LAB_SETTINGS` and no layout of an earlier run (which would reopen its tabs and their kernels)."""
+    for plugin, values in LAB_SETTINGS.items():
+        path = directory / "settings" / f"{plugin}.jupyterlab-settings"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(values))
+    return {
+        "JUPYTERLAB_SETTINGS_DIR": str(directory / "settings"),
+        "JUPYTERLAB_WORKSPACES_DIR": str(directory / "workspaces"),
+    }
+
+
 @pytest.fixture
 def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     """A JupyterLab server on loopback over a folder with the person's notebook; (url, results dir)."""
@@ -112,7 +133,10 @@ def lab(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     shutil.copy(notebook, tmp_path / "09_teach_second.ipynb")  # the same session from another kernel
     port, token = free_port(), "hipref-test"
     results = tmp_path / "results"
-    env = {**os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
+    env = {
+        **os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache"),
+        **lab_settings(tmp_path / "lab"),
+    }  # fmt: skip
     command = [
         sys.executable, "-m", "jupyterlab", "--no-browser", f"--port={port}", "--ip=127.0.0.1",
         f"--ServerApp.token={token}", f"--ServerApp.root_dir={tmp_path}", "--allow-root",
@@ -131,6 +155,22 @@ def run_all(page: Page) -> None:
         raise
     page.get_by_role("menuitem", name="Run", exact=True).click()
     page.get_by_role("menuitem", name="Run All Cells", exact=True).click()
+
+
+def shown(page: Page, text: str, timeout: float) -> None:
+    """Wait until `text` is visible in the preference widget; when it is not, fail with what the notebook
+    showed instead (its outputs' text, and a screenshot in the temporary directory)."""
+    try:
+        page.locator(".hipref-preferences").get_by_text(text).wait_for(timeout=timeout)
+    except Exception:
+        shot = Path(tempfile.gettempdir()) / "hipref_browser_failed.png"
+        page.screenshot(path=str(shot), full_page=True)
+        outputs = "\n".join(page.locator(".jp-OutputArea-output").all_inner_texts())
+        status = page.locator(".jp-StatusBar-Widget").all_inner_texts()
+        pytest.fail(
+            f"{text!r} not shown within {timeout / 1000:.0f} s; status bar {status}; outputs:\n"
+            f"{outputs[-3000:]}\n(screenshot: {shot})"
+        )
 
 
 def answers(results: Path) -> list[dict]:
@@ -163,9 +203,21 @@ def kernel_pid(results: Path) -> int:
     return int(holder.split()[1])
 
 
+def kernel_processes(kernel_id: str) -> list[int]:
+    """The pids of the processes of JupyterLab's kernel `kernel_id` (named by its connection file)."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        with contextlib.suppress(OSError):
+            if proc.name.isdigit() and f"kernel-{kernel_id}.json".encode() in (proc / "cmdline").read_bytes():
+                found.append(int(proc.name))
+    return found
+
+
 def kill_kernel(results: Path, url: str) -> None:
     """SIGKILL the kernel writing the session (the lock is freed), then wait until JupyterLab's server has
-    a live kernel for the notebook again: its own restart, or one asked of its REST API when that gave up."""
+    started a new process for the notebook's kernel: its own restart, or one asked of its REST API when that
+    gave up. The server's `execution_state` is not waited for: with no browser connected it may stay
+    "starting" after the restarted kernel is idle; the next page waits for the kernel itself (`run_all`)."""
     pid = kernel_pid(results)
     os.kill(pid, signal.SIGKILL)
     server, token = url.split("/lab/")[0], "?token=" + url.split("token=")[1]
@@ -180,7 +232,8 @@ def kill_kernel(results: Path, url: str) -> None:
         if not kernels:
             continue
         (kernel,) = kernels
-        if kernel["execution_state"] == "idle" and not Path(f"/proc/{pid}").exists():
+        alive = [p for p in kernel_processes(kernel["id"]) if p != pid]
+        if alive and kernel["execution_state"] not in ("dead", "restarting", "autorestarting"):
             return
         if kernel["execution_state"] == "dead" and not asked:
             request = urllib.request.Request(
@@ -220,8 +273,8 @@ def test_a_person_teaches_through_kills_refusals_and_reopening(lab):
         page = browser.new_page(viewport={"width": 1100, "height": 1400})
         page.goto(url)
         run_all(page)
+        shown(page, "Query 1 of 3", timeout=240_000)
         preferences = page.locator(".hipref-preferences")
-        preferences.get_by_text("Query 1 of 3").wait_for(timeout=240_000)
         preferences.get_by_role("button", name="◀ left").dblclick()  # a double click answers one query
         preferences.get_by_text("Query 2 of 3").wait_for(timeout=60_000)
         preferences.get_by_role("button", name="◀ left").wait_for(timeout=60_000)  # live again
@@ -256,8 +309,8 @@ def test_a_person_teaches_through_kills_refusals_and_reopening(lab):
             assert page.locator(".hipref-preferences").count() == 0
         assert session_lines(results) == answered
         run_all(page)  # writable again: the session resumes where the killed kernel stopped
+        shown(page, "Query 3 of 3", timeout=240_000)
         preferences = page.locator(".hipref-preferences")
-        preferences.get_by_text("Query 3 of 3").wait_for(timeout=240_000)
         preferences.get_by_role("button", name="can't tell ▼").click()
         preferences.get_by_text("All 3 preference queries answered").wait_for(timeout=60_000)
         feedback = page.locator(".hipref-feedback")
