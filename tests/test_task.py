@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hipref.control.tool import FEATURES_PER_PERIOD, FORCE_Z
 from hipref.envs.pushing import PushingTask
-from hipref.envs.task import Rollout, Task, clip, probe_slice
+from hipref.envs.task import Task, clip, probe_slice
 from hipref.envs.wiping import WipingTask
 
 TASKS = {"wiping": WipingTask, "pushing": PushingTask}
@@ -17,14 +18,63 @@ def task(request) -> Task:
     return TASKS[request.param]()
 
 
-def test_a_task_rolls_out_from_a_layout_it_samples(task):
+def test_a_rollout_with_the_truth_succeeds_and_one_off_by_a_quarter_of_the_range_fails(task):
+    # pi^l is only as good as the estimate it is given: the study's premise, in both worlds.
     low, high = task.parameter_range
+    truth, off = (low + high) / 2, (high - low) / 4
     layout = task.sample_layout(np.random.default_rng(3))
-    rollout = task.rollout(low + 0.4 * (high - low), low + 0.5 * (high - low), layout)
-    assert isinstance(rollout, Rollout)
-    assert rollout.features.ndim == 2 and rollout.features.shape[1] == 21
+    exact = task.rollout(truth, truth, layout)
+    assert exact.features.shape[1] == FEATURES_PER_PERIOD
+    assert exact.success
+    assert not task.rollout(truth, truth - off, layout).success
+    assert not task.rollout(truth, truth + off, layout).success
     planned = task.planned_periods(layout)
-    assert planned is None or planned == len(rollout.features)
+    assert planned is None or planned == len(exact.features)
+
+
+def test_the_same_layout_and_estimate_give_bit_identical_features_whatever_ran_before(task):
+    # Clips are replayed from a cache and shared by every run of an environment: a rollout must depend on
+    # its arguments alone, not on the state an earlier rollout left in the physics.
+    low, high = task.parameter_range
+    truth, estimate = low + 0.4 * (high - low), low + 0.5 * (high - low)
+    layout = task.sample_layout(np.random.default_rng(3))
+    first = task.rollout(truth, estimate, layout).features
+    task.rollout(high - 0.1 * (high - low), low, task.sample_layout(np.random.default_rng(4)))
+    np.testing.assert_array_equal(task.rollout(truth, estimate, layout).features, first)
+    assert not np.array_equal(task.rollout(truth, estimate + 0.05 * (high - low), layout).features, first)
+
+
+def test_in_wiping_a_higher_height_estimate_presses_less_and_the_truth_keeps_the_force_in_band():
+    # The sponge is aimed press_depth below the estimated surface: an estimate above the truth presses
+    # less (5 cm above, not at all), one below presses harder (5 cm below, past the band's top).
+    task = WipingTask()
+    truth, band = 0.7, task.config.force_band
+    layout = task.sample_layout(np.random.default_rng(3))
+    estimates = (0.65, 0.68, 0.7, 0.72, 0.75)
+    forces = [task.rollout(truth, estimate, layout).features[:, FORCE_Z] for estimate in estimates]
+    means = [force.mean() for force in forces]
+    assert np.all(np.diff(means) < 0)
+    in_band = {e: np.mean((f >= band[0]) & (f <= band[1])) for e, f in zip(estimates, forces, strict=True)}
+    assert in_band[truth] >= task.config.in_band_fraction
+    assert in_band[truth] > in_band[0.65] + 0.5 and in_band[truth] > in_band[0.75] + 0.5
+
+
+def test_a_push_is_executed_whole_and_a_wrong_mass_estimate_misses_the_goal():
+    task = PushingTask()
+    layout = task.sample_layout(np.random.default_rng(0))
+    with pytest.raises(ValueError, match="executed whole"):
+        task.rollout(14.0, 14.0, layout, periods=5)
+    # The rollout is the whole push, until the cube rests: the same periods as the push itself.
+    task.reset(14.0, *layout)
+    push = task.push(14.0)
+    np.testing.assert_array_equal(task.rollout(14.0, 14.0, layout).features, push.features)
+    # A light estimate under-pushes, a heavy one over-pushes: both rest farther from the goal.
+    miss = {
+        estimate: task.episode_metrics(14.0, estimate, layout)["goal_distance"] for estimate in (11, 14, 17)
+    }
+    tolerance = task.config.scene.goal_tolerance
+    assert miss[14] <= tolerance / 2
+    assert miss[11] > tolerance and miss[17] > tolerance
 
 
 @pytest.mark.parametrize(("domain", "truth", "estimate"), [("wiping", 0.62, 0.66), ("pushing", 12.0, 15.0)])
@@ -52,13 +102,6 @@ def test_a_replayed_clip_refuses_a_query_it_was_not_executed_for():
     np.testing.assert_array_equal(executed.replay(0.6, 3, np.random.default_rng(1)), executed.tau)
     with pytest.raises(RuntimeError, match="depend on what the learner has learnt"):
         executed.replay(0.62, 3, np.random.default_rng(1))
-
-
-def test_a_push_is_executed_whole():
-    task = PushingTask()
-    layout = task.sample_layout(np.random.default_rng(0))
-    with pytest.raises(ValueError, match="executed whole"):
-        task.rollout(12.0, 12.0, layout, periods=5)
 
 
 def test_a_probing_slice_has_h_periods_of_features_that_depend_on_the_true_parameter(task):
