@@ -43,6 +43,10 @@ the same model and size. Making one (a GL context, the meshes uploaded) costs ab
 20-frame clip; a GL context is current in one thread only, hence one per thread."""
 
 
+_AT_EXIT: list[bool] = []
+"""Holds True once the main thread's kept renderer is registered to be released at exit."""
+
+
 def _clip_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
     """A renderer without shadows, reflections or multisampling: on a CPU rasteriser (EGL on Mesa's
     llvmpipe) these take over nine tenths of a frame's time and show nothing a clip needs. The thread's
@@ -68,9 +72,6 @@ def _clip_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Ren
         atexit.register(release_clip_renderer)
         _AT_EXIT.append(True)
     return renderer
-
-
-_AT_EXIT: list[bool] = []
 
 
 def release_clip_renderer() -> None:

@@ -182,7 +182,7 @@ class PreferenceTeaching:
         self._closed = False
         self.current: ShownQuery | None = None
         # On the thread that prepares every later query: the clips' GL context is that thread's.
-        self._submit(self._replay, session.of_kind("preference")).result()
+        self._executor.submit(self._replay, session.of_kind("preference")).result()
 
     @property
     def learner(self) -> Learner:
@@ -274,9 +274,6 @@ class PreferenceTeaching:
         fresh = CandidateClips(clips.domain, self._task, self.truth, clips.layout, clips.frames, clips.fps)
         return self._prepare(number, None, copy.deepcopy(self._asker), clips=fresh)
 
-    def _submit(self, job: Callable[..., Any], *args: Any) -> Future[Any]:
-        return self._executor.submit(job, *args)
-
     def _render_ahead(self, nearest_first: list[float], token: int) -> None:
         """Render the clips of `nearest_first` not rendered yet, one after another, until `_ahead_token`
         changes: the person answered (the next query's preparation comes first) or the session closes."""
@@ -312,14 +309,14 @@ class PreferenceTeaching:
         given = self._answers_given
         if not self.answer_dependent:
             # Asked one ahead on the live learner; it is told the current answer once this is done.
-            future = self._submit(self._branch, self._asker, self.current, None, given)
+            future = self._executor.submit(self._branch, self._asker, self.current, None, given)
             self._next = dict.fromkeys(ANSWERS, future)
         else:
             for answer in ANSWERS:
                 branch = copy.deepcopy(self._asker)
-                self._next[answer] = self._submit(self._branch, branch, self.current, answer, given)
+                self._next[answer] = self._executor.submit(self._branch, branch, self.current, answer, given)
         if self.render:
-            self._ahead = self._submit(self._render_ahead, nearest_first, self._ahead_token)
+            self._ahead = self._executor.submit(self._render_ahead, nearest_first, self._ahead_token)
 
     def _replay(self, records: list[dict[str, Any]]) -> None:
         """Rebuild the learner from the stored answers, in the live order: ask k + 1 then tell k (uniform
@@ -391,5 +388,5 @@ class PreferenceTeaching:
         waiting: list[Future[Any]] = [*self._next.values()]
         for future in waiting + ([self._ahead] if self._ahead else []):
             future.cancel()
-        self._submit(release_clip_renderer)
+        self._executor.submit(release_clip_renderer)
         self._executor.shutdown(wait=True)
