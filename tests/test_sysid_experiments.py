@@ -44,15 +44,38 @@ def test_osi_pretraining_beats_predicting_the_midpoint_on_held_out_environments(
     assert osi_error < midpoint_error
 
 
-def test_a_run_gives_identical_rows_twice():
+def test_a_run_gives_identical_rows_twice(tmp_path, monkeypatch):
     cell = SIRun(
         "wiping", "pesi", 0.64, noise=0.2, seed=3, episodes=4, eval_every=2, eval_episodes=2, data=TINY
     )
-    first, second = run_si(cell), run_si(cell)
+    first = run_si(cell)
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(tmp_path / "second"))
+    sweep.forget_artefacts()  # learnt again, not read from memory or disk
+    second = run_si(cell)
     pd.testing.assert_frame_equal(first, second)
     readouts = {"param_error", "param_error_argmax", "param_error_multislice"}
     assert set(first.metric) == {*readouts, "success_rate"}
     assert sorted(first.episode.unique()) == [0, 2, 4]
+
+
+@pytest.mark.parametrize(("method", "truth"), [("pesi", 0.64), ("co_pesi", 0.74), ("bayes", 0.58)])
+def test_a_shorter_run_reads_the_first_evaluations_of_a_longer_one(method, truth, tmp_path, monkeypatch):
+    # CO-PESI's classifiers start after s = 16 preferences, so its short run already co-teaches.
+    long = SIRun(
+        "wiping", method, truth, noise=0.3, seed=2, episodes=40, eval_every=20, eval_episodes=1, data=TINY
+    )
+    short = dataclasses.replace(long, episodes=20)
+    direct = run_si(short)  # learnt by itself
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(tmp_path / "second"))
+    sweep.forget_artefacts()
+    longer = run_si(long)
+    learnt = []
+    monkeypatch.setattr(si_run, "_learn_and_evaluate", lambda cell: learnt.append(cell))
+    served = run_si(short)
+    assert learnt == []  # read from the longer run, not learnt again
+    pd.testing.assert_frame_equal(served, direct)
+    pd.testing.assert_frame_equal(longer[longer.episode <= 20].reset_index(drop=True), direct)
+    assert sorted(longer.episode.unique()) == [0, 20, 40]
 
 
 @pytest.mark.slow
@@ -94,7 +117,9 @@ def test_co_pesi_reports_its_filter_against_the_recorded_flips_and_it_beats_chan
     ("domain", "truth", "method", "noise"),
     [("wiping", 0.74, "co_pesi", 0.3), ("pushing", 15.5, "pesi_ce", 0.1)],
 )
-def test_replayed_learning_clips_give_the_rows_of_executing_them(domain, truth, method, noise, monkeypatch):
+def test_replayed_learning_clips_give_the_rows_of_executing_them(
+    domain, truth, method, noise, tmp_path, monkeypatch
+):
     cell = SIRun(
         domain, method, truth, noise=noise, seed=1, episodes=6, eval_every=3, eval_episodes=1, data=TINY
     )
@@ -106,6 +131,8 @@ def test_replayed_learning_clips_give_the_rows_of_executing_them(domain, truth, 
     executed = []
     monkeypatch.setattr(si_run, "learning_clips", lambda *args: executed.append(args))
     monkeypatch.setattr(Clip, "replay", lambda *args: pytest.fail("a clip was replayed"))
+    monkeypatch.setenv("HIPREF_CACHE_DIR", str(tmp_path / "second"))
+    sweep.forget_artefacts()  # the run learns again rather than reading its first rows
     pd.testing.assert_frame_equal(replayed, run_si(cell))
     assert len(executed) == 1
 

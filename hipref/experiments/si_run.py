@@ -19,7 +19,7 @@ evaluated (`hipref.experiments.si_evaluation`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -38,6 +38,7 @@ from hipref.learners.sysid import SIModel
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import integer_seed
+from hipref.sweep import cached_prefix
 from hipref.teachers.models import TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
 from hipref.validation import check_choice, check_field_types, check_int, check_range
@@ -94,7 +95,7 @@ class SIRun:
     """N, candidates per query (Eq. 3, A.2); CO-PESI needs 2."""
     episodes: int = 66
     """Learning episodes (preferences asked), at least 1: two evaluation periods of 33 by default, the quick
-    profile's (the full profile: 198, or 99 in notebooks 10 and 11)."""
+    profile's (the full profile: 330 in notebooks 02-04, 198 in 06 and 07, 99 in 08, 10 and 11)."""
     eval_every: int = 33
     """Learning episodes between evaluations (section 5: 33)."""
     eval_episodes: int = 10
@@ -211,14 +212,12 @@ def _observer(
     return lambda i: observer(task, cell.ground_truth, task.sample_layout(learn_rng), h)
 
 
-def run_si(cell: SIRun) -> pd.DataFrame:
-    """One run of `cell` (a sweep cell function): tidy rows of every metric per evaluation.
+Evaluation = list[tuple[int, str, float]]
+"""One evaluation's rows: (learning episodes so far, metric, value)."""
 
-    Between evaluations the learner learns by `algorithm_2`; at each, it is frozen and evaluated
-    (`hipref.experiments.si_evaluation`). Learners with a filter (`filter_precision_recall` not None) also
-    report its precision and recall against the flips the scripted teacher recorded (never shown to the
-    learner), counted over the learning so far.
-    """
+
+def _learn_and_evaluate(cell: SIRun) -> list[Evaluation]:
+    """Algorithm 2 between the evaluations of `cell`, and each evaluation's rows."""
     model = pretrained_model(cell.domain, cell.data)
     with one_thread():
         teacher_seq, learner_seq, learn_seq, _ = run_streams(cell.seed, cell.ground_truth)
@@ -226,14 +225,19 @@ def run_si(cell: SIRun) -> pd.DataFrame:
         task = make_task(cell.domain, cell.data.low_level)
         teacher = _teacher(cell, teacher_seq)
         learner = make_learner(cell, model, integer_seed(learner_seq))
-        low_level = cell.data.low_level.key
         evaluated_at = cell.evaluated_at
         spec = EvaluationSpec(
-            cell.domain, truth, cell.seed, cell.eval_episodes, cell.eval_slices, cell.data.history, low_level
+            cell.domain,
+            truth,
+            cell.seed,
+            cell.eval_episodes,
+            cell.eval_slices,
+            cell.data.history,
+            cell.data.low_level.key,
         )
         checkpoints = evaluation_episodes(task, spec, len(evaluated_at))
         observe = None if learner is None else _observer(cell, task, model, learn_seq)
-        rows: list[tuple[int, str, float]] = []
+        evaluations: list[Evaluation] = []
         learned = 0
         for episode, episodes in zip(evaluated_at, checkpoints, strict=True):
             if learner is not None and observe is not None:
@@ -243,14 +247,44 @@ def run_si(cell: SIRun) -> pd.DataFrame:
             quality = None if learner is None else learner.filter_precision_recall(teacher.wrong_labels)
             if quality is not None:
                 metrics |= {"filter_precision": quality[0], "filter_recall": quality[1]}
-            rows += [(episode, name, value) for name, value in metrics.items() if np.isfinite(value)]
+            evaluations.append([(episode, k, v) for k, v in metrics.items() if np.isfinite(v)])
+    return evaluations
+
+
+def run_si(cell: SIRun) -> pd.DataFrame:
+    """One run of `cell` (a sweep cell function): tidy rows of every metric per evaluation.
+
+    Between evaluations the learner learns by `algorithm_2`; at each, it is frozen and evaluated
+    (`hipref.experiments.si_evaluation`). Learners with a filter (`filter_precision_recall` not None) also
+    report its precision and recall against the flips the scripted teacher recorded (never shown to the
+    learner), counted over the learning so far.
+
+    A run's first k evaluations do not depend on how many episodes follow them (its clips and evaluation
+    episodes are prefixes of a longer run's, its learner and teacher draw from their own streams), so runs
+    evaluated every `eval_every` episodes are cached by `cached_prefix`: a study with fewer episodes reads
+    the first evaluations of a longer run of the same environment, method and setting instead of
+    learning again.
+    """
+    count = len(cell.evaluated_at)
+    if cell.checkpoints:
+        evaluations = _learn_and_evaluate(cell)
+    else:
+        evaluations = cached_prefix(
+            "si_run",
+            replace(cell, episodes=cell.eval_every),
+            count,
+            lambda n: _learn_and_evaluate(replace(cell, episodes=(n - 1) * cell.eval_every)),
+            check=lambda item: isinstance(item, list),
+        )
+    rows = [row for evaluation in evaluations for row in evaluation]
+    low_level = cell.data.low_level.key
     return tidy_rows(
         rows,
         domain=cell.domain,
         method=cell.method,
         noise=cell.noise,
         seed=cell.seed,
-        ground_truth=round(truth, 6),
+        ground_truth=round(cell.ground_truth, 6),
         n_candidates=cell.n_candidates,
         **({} if cell.teacher == TeacherModel() else {"teacher": cell.teacher.name}),
         **({} if low_level == ("admittance",) else {"low_level": cell.data.low_level.kind}),
