@@ -83,3 +83,30 @@ def test_each_period_tracks_its_own_row_of_the_perturbation_and_then_the_last(ta
     long = np.zeros((3 * len(plain), 6))
     long[k:] = offset
     np.testing.assert_array_equal(_push(task, 14.0, 14.0, 0, long)[0], perturbed)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.7])
+def test_the_target_yields_to_the_force_across_the_push_but_not_along_it(angle: float) -> None:
+    # SPD lets the arm yield by kp^-1 J^T f. The target makes up for that yield across and above the push,
+    # so the paddle stays put, and keeps it along the push, a series spring in the force loop. With J = I
+    # and kp^-1 = c per joint, the yield is c f.
+    from hipref.control.push import PushPlan, _push_target
+
+    u = np.array([np.cos(angle), np.sin(angle), 0.0])
+    across = np.array([-u[1], u[0], 0.0])
+    c, lead, along, speed = 1e-3, 0.02, 0.1, 0.3
+    plan = PushPlan(
+        u, np.array([0.4, -0.1, 0.8]), np.eye(3), np.full(6, c), lead, 10.0, 100, 1.0, 100, 0.01, 10, 0, 0
+    )
+    reference = plan.tool_start + u * (along + lead * speed)
+
+    def target(force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        position, rotation = np.zeros(3), np.zeros((3, 3))
+        _push_target.py_func(np.eye(6), plan, along, speed, force, np.zeros(6), position, rotation)
+        return position, rotation
+
+    position, rotation = target(30.0 * u)
+    np.testing.assert_allclose(position, reference, atol=1e-12)  # along the push: no compensation
+    np.testing.assert_allclose(rotation, np.eye(3), atol=1e-12)
+    position, _ = target(30.0 * u + 20.0 * across + 5.0 * np.array([0.0, 0.0, 1.0]))
+    np.testing.assert_allclose(position, reference - c * (20.0 * across + [0.0, 0.0, 5.0]), atol=1e-12)
