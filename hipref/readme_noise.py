@@ -47,6 +47,30 @@ def _levels(
     }
 
 
+HORIZONS: tuple[int, ...] = (99, 198, 330)
+"""The learning episodes after which the README reads CO-PESI against PESI (the paper gives no horizon)."""
+
+
+def _horizons(rows: pd.DataFrame) -> str:
+    """Per domain and flip rate, 'CO-PESI lowers the error' read after each of HORIZONS that was evaluated."""
+    evaluated = [n for n in HORIZONS if n in set(rows["episode"])]
+    parts = []
+    for domain in UNITS:
+        at = rows[rows["domain"] == domain]
+        cells = []
+        for level in sorted(e for e in at["noise"].unique() if e > 0):
+            said = [
+                verdicts.better(
+                    verdicts.Difference(*final_difference(at, domain, level, "param_error", episode=n)),
+                    lower_is_better=True,
+                )
+                for n in evaluated
+            ]
+            cells.append(f"at {percent(level)} {' / '.join(said)}")
+        parts.append(f"in {domain} " + ", ".join(cells))
+    return f"read after {' / '.join(map(str, evaluated))} episodes, is " + "; ".join(parts)
+
+
 def _copesi(results: Path) -> dict[str, str]:
     rows = csv(results, "data/04_r3_copesi.csv")
     filters = csv(results, "tables/04_filter_quality.csv")
@@ -79,6 +103,7 @@ def _copesi(results: Path) -> dict[str, str]:
         "co_verdict": WORDS[verdicts.combine(held)],
         "co_paper_levels": " and ".join(percent(e) for e in PAPER_LEVELS),
         "co_episodes": str(int(rows["episode"].max())),
+        "co_horizons": _horizons(rows),
         "precision_low": f"{filters['filter_precision'].min():.2f}",
         "precision_high": f"{filters['filter_precision'].max():.2f}",
         "recall_low": f"{filters['filter_recall'].min():.2f}",

@@ -44,7 +44,7 @@ class R3Config(SIStudy):
     """Evaluation episodes per evaluation (section 5: 10)."""
     claim_episodes: tuple[int, ...] = ()
     """Learning episodes after which the claims of Figs. 3 and 5 are tested, each an evaluated one (the paper
-    gives no horizon; empty: the last evaluation only; the full profile: 33, 66, 99, 198 and 330)."""
+    gives no horizon; empty: the last evaluation only; full profile: 5, from 33 to 330)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()  # types and distinct grid values (`check_grids`) first
