@@ -193,46 +193,6 @@ def check_fields(obj: object, sequences: Collection[str] = ()) -> None:
             check_kind(obj, f"{rule.name} item", item, rule.kind)
 
 
-def check_field_types(obj: Any) -> None:
-    """Raise ValueError naming the field unless every field of the dataclass `obj` annotated `float`, `int`,
-    `bool` or `str` holds a value of that kind (an integer is a number; a bool or a string that would
-    convert is none), so a cell or config with a value of the wrong kind fails where it is made or swept,
-    not deep inside the compute. Fields with other annotations are left to the class's own checks."""
-    try:
-        hints = typing.get_type_hints(type(obj))
-    except NameError:  # an annotation only a type checker resolves: nothing to check by
-        return
-    for field in dataclasses.fields(obj):
-        kind = SCALAR_KINDS.get(hints.get(field.name))  # type: ignore[arg-type]
-        value = getattr(obj, field.name)
-        if kind is not None and not kind[1](value):
-            raise ValueError(
-                f"{type(obj).__name__}.{field.name} must be {kind[0]}, got {value!r} ({type(value).__name__})"
-            )
-
-
-def check_grids(config: Any, sequences: tuple[str, ...] = ()) -> None:
-    """Raise ValueError naming the field unless every `tuple[X, ...]` field of the dataclass `config` holds
-    a tuple or list (not a scalar or a string, whose characters would be taken for its items) of distinct
-    items: a repeated value would run the same cells twice and fail only when their rows are combined;
-    and every scalar field a value of its annotated kind (`check_field_types`). The fields named in
-    `sequences` are ordered values that may repeat (a network's layer widths), not grids of cells."""
-    check_field_types(config)
-    hints = typing.get_type_hints(type(config))
-    for field in dataclasses.fields(config):
-        hint = hints[field.name]
-        if typing.get_origin(hint) is not tuple or typing.get_args(hint)[1:] != (Ellipsis,):
-            continue
-        value = getattr(config, field.name)
-        if not isinstance(value, tuple | list):
-            raise ValueError(f"{field.name} must be a list or tuple of values, got {value!r}")
-        repeated = sorted({repr(v) for v in value if list(value).count(v) > 1})
-        if repeated and field.name not in sequences:
-            raise ValueError(
-                f"{field.name} must not repeat a value, got {value!r} ({', '.join(repeated)} twice)"
-            )
-
-
 def check_range(name: str, value: float, low: float, high: float) -> None:
     """Raise ValueError naming the parameter, its range and the value unless low <= value <= high."""
     try:

@@ -20,9 +20,7 @@ from hipref.validation import (
     OneOf,
     Range,
     check_choice,
-    check_field_types,
     check_fields,
-    check_grids,
     check_int,
     check_interval,
     check_range,
@@ -229,31 +227,3 @@ def test_every_dataclass_of_the_package_resolves_its_annotations() -> None:
                 field_rules(obj)
                 found += 1
     assert found >= 40
-
-
-def test_check_field_types_takes_an_integer_as_a_number() -> None:
-    check_field_types(Settings(rate=1))
-    for field, bad in (
-        ("rate", "0.1"),
-        ("rate", True),
-        ("count", 2.0),
-        ("count", False),
-        ("flag", 1),
-        ("name", 3),
-    ):
-        with pytest.raises(ValueError, match=rf"Settings\.{field} must be"):
-            check_field_types(Settings(**{field: bad}))  # type: ignore[arg-type]
-
-
-def test_check_grids_refuses_a_repeated_value() -> None:
-    check_grids(Settings(), sequences=("widths",))
-    check_grids(Settings(levels=[0.1, 0.3]), sequences=("widths",))  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match=r"widths must not repeat a value, got \(8, 8\) \(8 twice\)"):
-        check_grids(Settings())
-    with pytest.raises(ValueError, match="levels must not repeat a value"):
-        check_grids(Settings(levels=(0.1, 0.2, 0.1)), sequences=("widths",))
-    for bad in (0.1, "0.1"):
-        with pytest.raises(ValueError, match="levels must be a list or tuple"):
-            check_grids(Settings(levels=bad), sequences=("widths",))  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match=r"Settings\.count must be an integer"):
-        check_grids(Settings(count=2.5), sequences=("widths",))  # type: ignore[arg-type]
