@@ -72,3 +72,16 @@ def test_a_grid_refuses_a_repeated_value_naming_the_field(qualname: str) -> None
         value = getattr(config(), name)
         with pytest.raises(ValueError, match=f"{name} must not repeat"):
             dataclasses.replace(config(), **{name: (*value, value[0])})
+
+
+@pytest.mark.parametrize("qualname", sorted(CONFIGS))
+def test_a_field_a_study_redefines_keeps_the_constraints_of_its_base(qualname: str) -> None:
+    """A subclass that redefines a field (another default) must repeat its annotation: its own replaces the
+    base's, constraints and all (`hipref.validation.check_fields`)."""
+    config = CONFIGS[qualname]
+    own = typing.get_type_hints(config, include_extras=True)
+    for base in config.__mro__[1:]:
+        if dataclasses.is_dataclass(base):
+            hints = typing.get_type_hints(base, include_extras=True)
+            for field in dataclasses.fields(base):
+                assert own[field.name] == hints[field.name], f"{field.name} of {base.__name__}"

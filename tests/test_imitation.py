@@ -252,7 +252,7 @@ def test_the_perturbation_is_smooth_with_the_spread_asked() -> None:
 @pytest.mark.parametrize(
     ("make", "message"),
     [
-        (lambda: LowLevel("neural"), "low_level must be one of"),
+        (lambda: LowLevel("neural"), "kind must be one of"),
         (lambda: ImitationConfig(perturbation=-0.1), "perturbation must be"),
         (lambda: ImitationConfig(hidden=()), "hidden must hold at least one"),
         (lambda: ImitationConfig(iterations=5, normalise_after=6), "normalise_after must be"),

@@ -3,20 +3,29 @@ accepts and refuses, and that a refusal names the parameter."""
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
 import math
+import pkgutil
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import pytest
 
+import hipref
 from hipref.validation import (
+    Integer,
+    NonEmptyTuple,
+    OneOf,
+    Range,
     check_choice,
-    check_field_types,
-    check_grids,
+    check_fields,
     check_int,
     check_interval,
     check_range,
     check_vector,
+    field_rules,
     is_number,
 )
 
@@ -135,8 +144,8 @@ class Settings:
     levels: tuple[float, ...] = (0.1, 0.2)
 
 
-def test_field_types_take_an_integer_as_a_number_and_nothing_else_across_kinds() -> None:
-    check_field_types(Settings(rate=1))
+def test_fields_take_an_integer_as_a_number_and_nothing_else_across_kinds() -> None:
+    check_fields(Settings(rate=1), sequences=("widths",))
     for field, bad in (
         ("rate", "0.1"),
         ("rate", True),
@@ -146,18 +155,75 @@ def test_field_types_take_an_integer_as_a_number_and_nothing_else_across_kinds()
         ("name", 3),
     ):
         with pytest.raises(ValueError, match=rf"Settings\.{field} must be"):
-            check_field_types(Settings(**{field: bad}))  # type: ignore[arg-type]
+            check_fields(Settings(**{field: bad}), sequences=("widths",))  # type: ignore[arg-type]
 
 
-def test_grids_refuse_a_repeated_value_a_scalar_or_a_string_but_sequences_may_repeat() -> None:
-    check_grids(Settings(), sequences=("widths",))
-    check_grids(Settings(levels=[0.1, 0.3]), sequences=("widths",))  # type: ignore[arg-type]
+def test_grids_refuse_a_repeated_value_a_scalar_a_string_or_a_wrong_item_but_sequences_may_repeat() -> None:
+    check_fields(Settings(), sequences=("widths",))
+    check_fields(Settings(levels=[0.1, 0.3]), sequences=("widths",))  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"widths must not repeat a value, got \(8, 8\) \(8 twice\)"):
-        check_grids(Settings())
+        check_fields(Settings())
     with pytest.raises(ValueError, match="levels must not repeat a value"):
-        check_grids(Settings(levels=(0.1, 0.2, 0.1)), sequences=("widths",))
+        check_fields(Settings(levels=(0.1, 0.2, 0.1)), sequences=("widths",))
     for bad in (0.1, "0.1"):
         with pytest.raises(ValueError, match="levels must be a list or tuple"):
-            check_grids(Settings(levels=bad), sequences=("widths",))  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match=r"Settings\.count must be an integer"):
-        check_grids(Settings(count=2.5), sequences=("widths",))  # type: ignore[arg-type]
+            check_fields(Settings(levels=bad), sequences=("widths",))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"Settings\.levels item must be a number, got '0.3' \(str\)"):
+        check_fields(Settings(levels=(0.1, "0.3")), sequences=("widths",))  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class Constrained:
+    noise: Annotated[float, Range(0.0, 1.0)] = 0.0
+    seed: Annotated[int, Integer(0)] = 0
+    size: Annotated[int, Integer(1, 10)] = 2
+    rule: Annotated[str, OneOf({"uniform": 1, "belief": 2})] = "uniform"
+    levels: NonEmptyTuple[Annotated[float, Range(0.0, 1.0)]] = (0.1, 0.2)
+    rules: tuple[Annotated[str, OneOf(("uniform", "belief"))], ...] = ()
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
+def test_constraints_in_annotations_accept_their_bounds() -> None:
+    Constrained(noise=1, seed=3, size=10, rule="belief", levels=[0.0, 1.0], rules=("belief",))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("given", "message"),
+    [
+        ({"noise": 1.5}, r"noise must be a finite number in \[0.0, 1.0\], got 1.5"),
+        ({"noise": "0.5"}, r"noise must be a finite number in \[0.0, 1.0\], got '0.5'"),
+        ({"noise": True}, r"noise must be a finite number in \[0.0, 1.0\], got True"),
+        ({"seed": -1}, r"seed must be an integer >= 0, got -1"),
+        ({"size": 11}, r"size must be an integer \[1, 10\], got 11"),
+        ({"size": 2.0}, r"size must be an integer \[1, 10\], got 2.0"),
+        ({"rule": "thompson"}, r"rule must be one of \['belief', 'uniform'\], got 'thompson'"),
+        ({"rule": 3}, r"rule must be one of \['belief', 'uniform'\], got 3"),
+        ({"levels": ()}, r"levels must hold at least one value in \[0.0, 1.0\], got \(\)"),
+        ({"levels": ("0.3",)}, r"levels must be a finite number in \[0.0, 1.0\], got '0.3'"),
+        ({"levels": (0.3, 1.3)}, r"levels must be a finite number in \[0.0, 1.0\], got 1.3"),
+        ({"levels": (0.3, 0.3)}, r"levels must not repeat a value, got \(0.3, 0.3\) \(0.3 twice\)"),
+        ({"rules": ("uniform", "x")}, r"rules must be one of \['belief', 'uniform'\], got 'x'"),
+        ({"rules": "uniform"}, r"rules must be a list or tuple of values, got 'uniform'"),
+    ],
+)
+def test_constraints_in_annotations_refuse_naming_the_field_the_allowed_values_and_the_value(
+    given: dict[str, object], message: str
+) -> None:
+    with pytest.raises(ValueError, match=message):
+        Constrained(**given)  # type: ignore[arg-type]
+
+
+def test_every_dataclass_of_the_package_resolves_its_annotations() -> None:
+    """`check_fields` has nothing to check by where an annotation does not resolve at run time."""
+    found = 0
+    for info in pkgutil.walk_packages(hipref.__path__, "hipref."):
+        if info.name.startswith("hipref.bench"):
+            continue
+        module = importlib.import_module(info.name)
+        for obj in vars(module).values():
+            if isinstance(obj, type) and dataclasses.is_dataclass(obj) and obj.__module__ == info.name:
+                field_rules(obj)
+                found += 1
+    assert found >= 40

@@ -11,30 +11,28 @@ is still reached. The pushing policy applies it along the push direction with K_
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Annotated, NamedTuple
 
 import numpy as np
 
 from hipref.control.compiled import subroutine
-from hipref.validation import check_range
+from hipref.validation import Range, check_fields
 
 
 @dataclass(frozen=True)
 class AdmittanceGains:
     """Desired inertia, damping and stiffness of Eq. 7 along the contact normal."""
 
-    inertia: float = 1.0
+    inertia: Annotated[float, Range(1e-3, 100.0)] = 1.0
     """M_d in kg (Table 1)."""
-    stiffness: float = 1000.0
+    stiffness: Annotated[float, Range(0.0, 1e5)] = 1000.0
     """K_d in N/m: the contact force settles at about K_d times the commanded depth below the surface."""
-    damping_ratio: float = 5.0
+    damping_ratio: Annotated[float, Range(0.1, 100.0)] = 5.0
     """D_d as a multiple of critical damping, D_d = 2 ratio sqrt(K_d M_d): overdamped, so the compliant
     reference settles on a stiff desk without bouncing."""
 
     def __post_init__(self) -> None:
-        check_range("inertia", self.inertia, 1e-3, 100.0)
-        check_range("stiffness", self.stiffness, 0.0, 1e5)
-        check_range("damping_ratio", self.damping_ratio, 0.1, 100.0)
+        check_fields(self)
 
     @property
     def damping(self) -> float:

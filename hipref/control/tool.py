@@ -20,7 +20,7 @@ from hipref.control.compiled import Physics, kernel, physics_of, subroutine
 from hipref.control.ik import IK, ToolIK, ik_step, tool_jacobian
 from hipref.control.spd import SPD, make_spd, spd_physics_step
 from hipref.sim.scene import Scene
-from hipref.validation import check_grids, check_vector
+from hipref.validation import check_fields, check_vector
 
 FEATURES_PER_PERIOD = 21
 """What the SI model sees of one control period: joint positions (6), joint velocities (6), wrist force (3)
@@ -45,10 +45,10 @@ class ControllerConfig:
     """Gains of Eq. 7 along the contact normal."""
 
     SEQUENCES: ClassVar[tuple[str, ...]] = ("kp", "kd")
-    """Per-axis gains (x, y, z, then rotations), whose values may repeat (`check_grids`)."""
+    """Per-axis gains (x, y, z, then rotations), whose values may repeat (`check_fields`)."""
 
     def __post_init__(self) -> None:
-        check_grids(self, self.SEQUENCES)
+        check_fields(self, self.SEQUENCES)
         check_vector("kp", self.kp, 6, positive=True)
         check_vector("kd", self.kd, 6, positive=True)
 

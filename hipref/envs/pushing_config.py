@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Annotated
 
 from hipref.control.admittance import AdmittanceGains
 from hipref.control.tool import ControllerConfig
 from hipref.sim.config import SceneConfig
-from hipref.validation import check_int, check_interval, check_range
+from hipref.validation import Integer, Range, check_fields, check_interval, check_range
 
 
 @dataclass(frozen=True)
@@ -22,7 +23,7 @@ class PushingConfig:
     """Gains of SPD (the push direction uses `push_admittance`)."""
     mass_range: tuple[float, float] = (8.0, 20.0)
     """Range of the cube mass in kg, the unknown parameter (Table 2)."""
-    desk_height: float = 0.7
+    desk_height: Annotated[float, Range(0.5, 0.9)] = 0.7
     """Height of the desk in m (known in this task)."""
     area_x: tuple[float, float] = (-0.3, 0.3)
     """Extent along the desk in m where cubes start and goals lie."""
@@ -32,7 +33,7 @@ class PushingConfig:
     push_distance: tuple[float, float] = (0.1, 0.2)
     """Range of the distance in m from the cube's start to its goal: some 3 to 7 goal tolerances, so that
     a mass error of a few kg moves the cube out of tolerance."""
-    planned_acceleration: float = 2.0
+    planned_acceleration: Annotated[float, Range(0.1, 10.0)] = 2.0
     """Acceleration in m/s^2 the push plans for the cube. The push force is then m^ (a + mu g) plus
     M_d a; lower accelerations make the outcome more sensitive to the mass error (the friction term
     dominates the force) but the push longer."""
@@ -42,28 +43,29 @@ class PushingConfig:
     """Eq. 7 along the push direction: inertia M_d only (K_d = 0, hence D_d = 0), a force-tracking law.
     M_d of the order of the cube's mass keeps the loop through the stiff contact slow, so the reaction
     does not chatter (M_d = 5 kg made the cube bounce on the paddle and rock)."""
-    brake_deceleration: float = 20.0
+    brake_deceleration: Annotated[float, Range(1.0, 100.0)] = 20.0
     """Deceleration in m/s^2 of the pusher after the push, well above friction's (mu g = 4.9 m/s^2), so
     the cube leaves the paddle at once and slides free."""
     contact_height: float = 0.005
     """Height in m of the paddle's lowest (rear) edge above the desk while pushing: clear of the desk,
     so the paddle drags nothing but the cube."""
-    tilt: float = 0.1
+    tilt: Annotated[float, Range(0.0, 0.5)] = 0.1
     """Pitch in rad of the paddle, lower edge forward: the paddle touches the cube along one edge about
     a centimetre above the desk, far below the height (about 3.5 cm at the planned forces) above which
     the push would tip the cube forward."""
-    reach_residual: float = 1e-3
+    reach_residual: Annotated[float, Range(1e-6, 0.05)] = 1e-3
     """Largest IK position error in m accepted for a layout's tool poses: beyond it the arm cannot place
     the paddle behind the cube."""
-    settle_time: float = 1.5
+    settle_time: Annotated[float, Range(0.1, 10.0)] = 1.5
     """Longest time in s the cube is given to come to rest after the push."""
-    rest_speed: float = 1e-3
+    rest_speed: Annotated[float, Range(1e-5, 0.1)] = 1e-3
     """Speed in m/s below which the cube counts as at rest and the push ends."""
-    layout_attempts: int = 1000
+    layout_attempts: Annotated[int, Integer(1)] = 1000
     """Most random draws `PushingTask.sample_layout` makes before it gives up on the config; the default
     layout needs a handful."""
 
     def __post_init__(self) -> None:
+        check_fields(self)
         scene = self.scene
         check_interval("mass_range", self.mass_range, 0.0, math.inf, low_open=True, unit="kg")
         # The cube, centred anywhere in the area, stays on the desk.
@@ -84,14 +86,6 @@ class PushingConfig:
             unit="m",
             why=" (high below the diagonal of area_x x area_y, as start and goal both lie in the area)",
         )
-        check_int("layout_attempts", self.layout_attempts, 1)
-        check_range("desk_height", self.desk_height, 0.5, 0.9)
-        check_range("planned_acceleration", self.planned_acceleration, 0.1, 10.0)
-        check_range("brake_deceleration", self.brake_deceleration, 1.0, 100.0)
         check_range("contact_height", self.contact_height, 0.0, self.scene.cube_size[2])
-        check_range("tilt", self.tilt, 0.0, 0.5)
-        check_range("reach_residual", self.reach_residual, 1e-6, 0.05)
-        check_range("settle_time", self.settle_time, 0.1, 10.0)
-        check_range("rest_speed", self.rest_speed, 1e-5, 0.1)
         if self.push_admittance.stiffness != 0.0:
             raise ValueError("push_admittance must have stiffness 0: the push tracks a force, not a position")

@@ -9,9 +9,9 @@ of one control period, into the joint reference (`hipref.envs.low_level`)."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import Annotated
 
 import mujoco
 import numpy as np
@@ -33,7 +33,15 @@ from hipref.envs.task import ROUTES, Layout, Rollout, evenly_spaced
 from hipref.sim.config import SceneConfig
 from hipref.sim.render import clip_frames, watching_camera
 from hipref.sim.scene import Scene, make_scene
-from hipref.validation import check_choice, check_int, check_interval, check_parameter, check_range
+from hipref.validation import (
+    Range,
+    check_choice,
+    check_fields,
+    check_int,
+    check_interval,
+    check_parameter,
+    check_range,
+)
 
 HOVER_CLEARANCE = 0.03
 """Least height in m of the tool tip at reset above the highest desk of the range."""
@@ -58,25 +66,26 @@ class WipingConfig:
     force_band: tuple[float, float] = (1.0, 60.0)
     """Safe band of the contact force in N: below it the sponge does not clean, above it risks damage
     (robosuite's Wipe uses 0.5 N and 60 N)."""
-    press_depth: float = 0.03
+    press_depth: Annotated[float, Range(0.0, 0.05)] = 0.03
     """Depth in m below the estimated surface the sponge is aimed at; the admittance stiffness turns it
     into a contact force of about K_d times the depth."""
-    in_band_fraction: float = 0.8
+    in_band_fraction: Annotated[float, Range(0.0, 1.0)] = 0.8
     """Fraction of a stroke's control periods whose contact force must lie in the safe band."""
-    reach_residual: float = 1e-3
+    reach_residual: Annotated[float, Range(1e-6, 0.05)] = 1e-3
     """Largest inverse-kinematics position error in m accepted when the arm is placed above the desk."""
     hover_height: float = 0.95
     """Height in m of the tool tip at reset: above the highest desk."""
-    approach_speed: float = 0.5
+    approach_speed: Annotated[float, Range(0.01, 2.0)] = 0.5
     """Speed in m/s of the descent towards the estimated surface until `approach_clearance` above it."""
-    approach_clearance: float = 0.03
+    approach_clearance: Annotated[float, Range(0.0, 0.2)] = 0.03
     """Height in m above the estimated surface where the descent slows to the tool speed."""
 
     def __post_init__(self) -> None:
+        check_fields(self)
         table = self.scene.table_size
         # The desk stands on the floor with its top below the tool's hovering height. When that coupling
         # fails, the error names the field the caller changed: the range, unless only the hover height was.
-        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        defaults = {f.name: f.default for f in fields(self)}
         range_changed = tuple(self.height_range) != defaults["height_range"]
         if self.hover_height != defaults["hover_height"] and not range_changed:
             lowest = self.height_range[1] + HOVER_CLEARANCE
@@ -95,11 +104,6 @@ class WipingConfig:
         check_interval("area_x", self.area_x, -table[0] / 2, table[0] / 2, unit="m", why=" (on the desk)")
         check_interval("area_y", self.area_y, -table[1] / 2, table[1] / 2, unit="m", why=" (on the desk)")
         check_interval("force_band", self.force_band, 0.0, math.inf, unit="N")
-        check_range("press_depth", self.press_depth, 0.0, 0.05)
-        check_range("in_band_fraction", self.in_band_fraction, 0.0, 1.0)
-        check_range("approach_speed", self.approach_speed, 0.01, 2.0)
-        check_range("approach_clearance", self.approach_clearance, 0.0, 0.2)
-        check_range("reach_residual", self.reach_residual, 1e-6, 0.05)
 
 
 @dataclass

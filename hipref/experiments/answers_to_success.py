@@ -22,7 +22,7 @@ exactly PESI's queries (the same seed and draws), so the two differ only in what
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
@@ -42,7 +42,7 @@ from hipref.seeds import integer_seed
 from hipref.sweep import run_sweep
 from hipref.teachers.models import TEACHER_KINDS, TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, OneOf, Range, check_fields, check_int, check_range
 
 TASK_METHODS: tuple[str, ...] = ("pesi", "co_pesi", "bayes", "bayes_si")
 """The learners of the task part: the paper's two and the Bayesian one, from a uniform prior or from SI's
@@ -55,6 +55,12 @@ learner told its kind, not its flip rate)."""
 
 MODEL_CHOICE_BOUND = 1.25
 """The claims' most answers (or final error) of the learner told nothing against the one told the model."""
+
+FLIP_RATE = Range(0.0, 0.5 - 1e-9)
+"""A flip rate of the paper's teacher: at 0.5 its answers would tell nothing."""
+
+OTHER_TEACHERS: tuple[str, ...] = tuple(k for k in TEACHER_KINDS if k not in ("oracle", "mistake"))
+"""The teacher models of `AnswersConfig.teachers`: all but the oracle and the paper's teacher."""
 
 
 def answer_counts(episodes: int) -> tuple[int, ...]:
@@ -72,28 +78,23 @@ class AnswersCell:
     """'wiping' or 'pushing'."""
     ground_truth: float
     """The environment's true parameter."""
-    seed: int
+    seed: Annotated[int, Integer(0)]
     """The environment's seed: with the truth, the teacher's and the learner's streams (`run_streams`)."""
-    teacher: str
+    teacher: Annotated[str, OneOf(TEACHER_KINDS)]
     """The teacher model's kind (`hipref.teachers.models.TEACHER_KINDS`)."""
-    noise: float
+    noise: Annotated[float, FLIP_RATE]
     """Its uniform flip rate."""
-    query_rule: str
+    query_rule: Annotated[str, OneOf(QUERY_RULES)]
     """One of QUERY_RULES."""
-    told: str
+    told: Annotated[str, OneOf(TOLD)]
     """What the learner is told of the teacher: its 'model', its 'kind' or 'nothing' (`TOLD`)."""
-    episodes: int
+    episodes: Annotated[int, Integer(1)]
     """Answers asked."""
 
     def __post_init__(self) -> None:
+        check_fields(self)
         spec = domain_spec(self.domain)
         check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
-        check_int("seed", self.seed, 0)
-        check_choice("teacher", self.teacher, TEACHER_KINDS)
-        check_range("noise", self.noise, 0.0, 0.5 - 1e-9)
-        check_choice("query_rule", self.query_rule, QUERY_RULES)
-        check_choice("told", self.told, TOLD)
-        check_int("episodes", self.episodes, 1)
 
 
 def run_answers(cell: AnswersCell) -> pd.DataFrame:
@@ -143,70 +144,54 @@ def run_answers(cell: AnswersCell) -> pd.DataFrame:
 class AnswersConfig(SIStudy):
     """Parameters of notebook 12 (the quick profile's sizes by default)."""
 
-    domains: tuple[str, ...] = ("wiping", "pushing")
+    domains: NonEmptyTuple[Annotated[str, OneOf(DOMAINS)]] = ("wiping", "pushing")
     """Domains to run: 'wiping' (desk height) and 'pushing' (cube mass)."""
     heights: tuple[float, ...] = (0.62, 0.78)
     """True desk heights in m of the wiping environments, each in [0.5, 0.9]."""
     masses: tuple[float, ...] = (11.5, 16.5)
     """True cube masses in kg of the pushing environments, each in [8, 20]."""
-    episodes: int = 66
+    episodes: Annotated[int, Integer(1)] = 66
     """Answers per run, at least 1."""
     eval_every: int = 1
     """Not used: the task part evaluates after `checkpoints` (1 passes the base's check for any episodes)."""
     checkpoints: tuple[int, ...] = (0, 5, 10, 20, 33, 66)
     """Answers after which the task part evaluates (increasing, from 0 to at most `episodes`); its runs end
     at the last one."""
-    eval_episodes: int = 3
+    eval_episodes: Annotated[int, Integer(1)] = 3
     """Evaluation episodes per checkpoint of the task part (section 5: 10)."""
-    noise_levels: tuple[float, ...] = (0.0, 0.2)
+    noise_levels: NonEmptyTuple[Annotated[float, FLIP_RATE]] = (0.0, 0.2)
     """Flip rates of the paper's teacher ('mistake') in the answers part, each in [0, 0.5)."""
-    blind_noise_levels: tuple[float, ...] = (0.0, 0.2)
+    blind_noise_levels: tuple[Annotated[float, FLIP_RATE], ...] = (0.0, 0.2)
     """Of `noise_levels`, those at which the answers part also runs, under chosen rules, the learner told
     only the teacher's kind and the one told nothing (the claims read 0 and 20 %); at the others it is told
     the model."""
-    teachers: tuple[str, ...] = ("distance",)
+    teachers: tuple[Annotated[str, OneOf(OTHER_TEACHERS)], ...] = ("distance",)
     """The other teacher models of the answers part (notebook 11's, each at its default; no flips)."""
-    answer_rules: tuple[str, ...] = ("uniform", "information_gain")
+    answer_rules: NonEmptyTuple[Annotated[str, OneOf(QUERY_RULES)]] = ("uniform", "information_gain")
     """Query rules of the answers part under the paper's teacher (the other teachers: information_gain)."""
-    task_noise_levels: tuple[float, ...] = (0.2,)
+    task_noise_levels: NonEmptyTuple[Annotated[float, FLIP_RATE]] = (0.2,)
     """Flip rates of the paper's teacher in the task part, each in [0, 0.5); CO-PESI runs where above 0."""
-    methods: tuple[str, ...] = TASK_METHODS
+    methods: NonEmptyTuple[Annotated[str, OneOf(TASK_METHODS)]] = TASK_METHODS
     """Learners of the task part, of TASK_METHODS."""
-    task_rules: tuple[str, ...] = ("uniform", "information_gain")
+    task_rules: NonEmptyTuple[Annotated[str, OneOf(QUERY_RULES)]] = ("uniform", "information_gain")
     """Query rules of the Bayesian learners in the task part, of QUERY_RULES (PESI and CO-PESI ask uniform
     pairs, Algorithm 2's)."""
     task_seeds: int = 1
     """Seeds per true parameter of the task part (its environments are the first of the answers part's):
     the physics costs a hundred times what the answers alone do."""
-    held_out_heights: tuple[float, ...] = (0.68,)
+    held_out_heights: NonEmptyTuple[float] = (0.68,)
     """True desk heights in m of the held-out wiping environments, each in [0.5, 0.9] and none of `heights`:
     the answers part's headline claims replicated on truths the study does not tune on (full profile: 5)."""
-    held_out_masses: tuple[float, ...] = (14.75,)
+    held_out_masses: NonEmptyTuple[float] = (14.75,)
     """True cube masses in kg of the held-out pushing environments, each in [8, 20] and none of `masses`
     (full profile: 5)."""
-    held_out_seeds: tuple[int, ...] = (300,)
+    held_out_seeds: NonEmptyTuple[int] = (300,)
     """Seeds of the held-out environments, none below `seeds` (the grid's are 0 .. seeds - 1)."""
-    held_out_episodes: int = 40
+    held_out_episodes: Annotated[int, Integer(1)] = 40
     """Answers per held-out run, at least 1: the replicated claims read at most 30 (`STEP_BOUNDS`)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _check_set("domains", self.domains, tuple(DOMAINS))
-        _check_set(
-            "teachers",
-            self.teachers,
-            tuple(k for k in TEACHER_KINDS if k not in ("oracle", "mistake")),
-            empty=True,
-        )
-        _check_set("answer_rules", self.answer_rules, QUERY_RULES)
-        _check_set("methods", self.methods, TASK_METHODS)
-        _check_set("task_rules", self.task_rules, QUERY_RULES)
-        for name in ("noise_levels", "blind_noise_levels", "task_noise_levels"):
-            levels = getattr(self, name)
-            _check_set(name, levels, None, empty=name == "blind_noise_levels")
-            for level in levels:
-                if isinstance(level, bool) or not isinstance(level, int | float) or not 0.0 <= level < 0.5:
-                    raise ValueError(f"{name} must hold flip rates in [0, 0.5), got {level!r}")
         extra = set(self.blind_noise_levels) - set(self.noise_levels)
         if extra:
             raise ValueError(f"blind_noise_levels must be among noise_levels, got {sorted(extra)!r} besides")
@@ -219,16 +204,13 @@ class AnswersConfig(SIStudy):
         grids = truth_grids(self)
         for domain, values in self.held_out_grids().items():
             name = f"held_out_{DOMAINS[domain].truths}"
-            _check_set(name, values, None)
             phi = DOMAINS[domain].candidates
             for value in values:
                 check_range(name, value, phi.low, phi.high)
                 if value in grids[domain]:
                     raise ValueError(f"{name} must hold truths outside the grid, got {value} (in the grid)")
-        _check_set("held_out_seeds", self.held_out_seeds, None)
         for seed in self.held_out_seeds:
             check_int("held_out_seeds", seed, self.seeds)
-        check_int("held_out_episodes", self.held_out_episodes, 1)
 
     def held_out_grids(self) -> dict[str, tuple[float, ...]]:
         """Each domain's held-out true parameters (`held_out_heights`, `held_out_masses`)."""
@@ -299,18 +281,6 @@ class AnswersConfig(SIStudy):
             if rule == "uniform" or method in BAYES_METHODS
             for truth, seed in self.task_environments(domain)
         ]
-
-
-def _check_set(
-    name: str, values: tuple[Any, ...], allowed: tuple[str, ...] | None, empty: bool = False
-) -> None:
-    if not values and not empty:
-        raise ValueError(f"{name} must hold at least one value, got ()")
-    if len(set(values)) != len(values):
-        raise ValueError(f"{name} must not repeat a value, got {values!r}")
-    if allowed is not None:
-        for value in values:
-            check_choice(name, value, allowed)
 
 
 def run_cell(cell: SIRun | AnswersCell) -> pd.DataFrame:

@@ -12,7 +12,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
@@ -22,7 +22,7 @@ from hipref.experiments.domains import DOMAINS, domain_spec, estimate_error_grid
 from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_grids, check_int, check_range
+from hipref.validation import Integer, OneOf, Range, check_fields, check_range
 
 COMPLIANT: dict[str, bool] = {"spd": False, "admittance": True}
 """The ablation's controllers by name, and whether each puts admittance control on SPD (A.8)."""
@@ -35,21 +35,21 @@ CLAIM_ERRORS: dict[str, str] = {"wiping": "claim_height_error", "pushing": "clai
 class ControllersConfig:
     """Parameters of notebook 05 (defaults: the quick profile; the paper's values where it gives them)."""
 
-    desk_height: float = 0.81
+    desk_height: Annotated[float, Range(0.5, 0.9)] = 0.81
     """True desk height of the ablation in m (A.8)."""
-    desired_heights: tuple[float, ...] = (0.72, 0.74, 0.76, 0.78, 0.80)
+    desired_heights: tuple[Annotated[float, Range(0.5, 0.9)], ...] = (0.72, 0.74, 0.76, 0.78, 0.80)
     """Desk heights the controllers are told, in m (A.8)."""
-    trajectory_goals: int = 6
+    trajectory_goals: Annotated[int, Integer(1, 100)] = 6
     """Random goals on the desk that make up the ablation's shared trajectory."""
-    ablation_seeds: int = 3
+    ablation_seeds: Annotated[int, Integer(1, 1000)] = 3
     """Random trajectories per desired height and controller."""
     height_errors: tuple[float, ...] = tuple(np.round(np.arange(-0.06, 0.0601, 0.01), 2))
     """Errors of the desk-height estimate in m for the success curve."""
     mass_errors: tuple[float, ...] = tuple(float(e) for e in range(-6, 7))
     """Errors of the cube-mass estimate in kg for the success curve."""
-    curve_seeds: int = 10
+    curve_seeds: Annotated[int, Integer(1, 10000)] = 10
     """Random episodes (parameter, start and goal) per estimate error."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Root seed; every episode's seed derives from it."""
     claim_height_error: float = 0.05
     """Height error in m at which the wiping task should mostly fail (claim: success at most 0.3 at
@@ -59,14 +59,7 @@ class ControllersConfig:
     in `mass_errors`."""
 
     def __post_init__(self) -> None:
-        check_grids(self)
-        check_range("desk_height", self.desk_height, 0.5, 0.9)
-        for h in self.desired_heights:
-            check_range("desired_heights", h, 0.5, 0.9)
-        check_int("trajectory_goals", self.trajectory_goals, 1, 100)
-        check_int("ablation_seeds", self.ablation_seeds, 1, 1000)
-        check_int("curve_seeds", self.curve_seeds, 1, 10000)
-        check_int("seed", self.seed, 0)
+        check_fields(self)
         claims = self.claim_errors()
         for domain, errors in estimate_error_grids(self).items():
             name, candidates = DOMAINS[domain].estimate_errors, DOMAINS[domain].candidates
@@ -93,18 +86,14 @@ class ControllersConfig:
 class AblationCell:
     """One controller following one random trajectory under one desired height."""
 
-    method: str
-    desk_height: float
-    desired_height: float
-    trajectory_goals: int
-    seed: int
+    method: Annotated[str, OneOf(COMPLIANT)]
+    desk_height: Annotated[float, Range(0.5, 0.9)]
+    desired_height: Annotated[float, Range(0.5, 0.9)]
+    trajectory_goals: Annotated[int, Integer(1, 100)]
+    seed: Annotated[int, Integer(0)]
 
     def __post_init__(self) -> None:
-        check_choice("method", self.method, tuple(COMPLIANT))
-        check_range("desk_height", self.desk_height, 0.5, 0.9)
-        check_range("desired_height", self.desired_height, 0.5, 0.9)
-        check_int("trajectory_goals", self.trajectory_goals, 1, 100)
-        check_int("seed", self.seed, 0)
+        check_fields(self)
 
 
 @dataclass(frozen=True)
@@ -113,13 +102,13 @@ class CurveCell:
 
     domain: str
     error: float
-    seed: int
+    seed: Annotated[int, Integer(0)]
 
     def __post_init__(self) -> None:
+        check_fields(self)
         phi = domain_spec(self.domain).candidates
         # Beyond the range's width no true parameter leaves the estimate inside the range.
         check_range("error", self.error, phi.low - phi.high, phi.high - phi.low)
-        check_int("seed", self.seed, 0)
 
 
 def _rows(domain: str, method: str, seed: int, metrics: dict[str, float], **extra: float) -> pd.DataFrame:

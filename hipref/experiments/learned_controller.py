@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -41,7 +41,7 @@ from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
 from hipref.sweep import run_sweep
-from hipref.validation import check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, Range, check_int, check_range
 
 SI_METHODS: tuple[str, ...] = ("osi", "pesi")
 """The SI methods run on top of each low level."""
@@ -80,11 +80,11 @@ class LearnedControllerConfig(SIStudy):
     """True desk heights in m of the SI environments, each in [0.5, 0.9]."""
     masses: tuple[float, ...] = (14.0,)
     """True cube masses in kg of the SI environments, each in [8, 20]."""
-    episodes: int = 20
+    episodes: Annotated[int, Integer(1)] = 20
     """Learning episodes per SI run, at least 1."""
     eval_every: int = 20
     """Learning episodes between SI evaluations (section 5: 33)."""
-    eval_episodes: int = 3
+    eval_episodes: Annotated[int, Integer(1)] = 3
     """Evaluation episodes per SI evaluation (section 5: 10)."""
     n_trajectories: int = 10
     """Algorithm 4 trajectories, collected with each low level (A.7: 100)."""
@@ -118,11 +118,11 @@ class LearnedControllerConfig(SIStudy):
     mass_errors: tuple[float, ...] = (-4.0, 0.0, 4.0)
     """Errors in kg of the cube-mass estimate the controllers are compared at (notebook 05's claim: most
     pushes fail at +-4); distinct, 0.0 (the true parameter) among them."""
-    episodes_per_error: int = 3
+    episodes_per_error: Annotated[int, Integer(1)] = 3
     """Episodes (truth, layout) per estimate error, each executed by both low levels."""
-    comparison_seed: int = 0
+    comparison_seed: Annotated[int, Integer(0)] = 0
     """Root seed of the comparison's episodes."""
-    estimate_spreads: tuple[float, ...] = (0.0, 0.35)
+    estimate_spreads: NonEmptyTuple[Annotated[float, Range(0.0, 1.0)]] = (0.0, 0.35)
     """Readings of Algorithm 3's demonstrations, one learned pi^l each (`ImitationConfig.estimate_spread`):
     the half-width, as a fraction of the parameter range, of the estimate the expert is told around the
     world's truth, each row labelled with the estimate. 0.0 is the paper's reading (told the truth); the
@@ -130,9 +130,9 @@ class LearnedControllerConfig(SIStudy):
     blind_reference: bool = False
     """Whether pi^l does without the last period's joint reference among the state's features
     (`ImitationConfig.blind`): the next reference can be extrapolated from it without reading phi."""
-    held_out_episodes: int = 3
+    held_out_episodes: Annotated[int, Integer(1)] = 3
     """Episodes with the true parameter on held-out seeds, executed by every low level."""
-    held_out_seed: int = 1
+    held_out_seed: Annotated[int, Integer(0)] = 1
     """Root seed of the held-out episodes: another grid than `comparison_seed`'s, on which nothing of the
     study was tuned."""
 
@@ -148,14 +148,6 @@ class LearnedControllerConfig(SIStudy):
                 raise ValueError(f"{name} must hold 0.0 (the true parameter), got {list(errors)!r}")
             for error in errors:
                 check_range(name, error, -bound, bound)
-        check_int("episodes_per_error", self.episodes_per_error, 1)
-        check_int("comparison_seed", self.comparison_seed, 0)
-        if not self.estimate_spreads:
-            raise ValueError("estimate_spreads must not be empty, got ()")
-        for spread in self.estimate_spreads:
-            check_range("estimate_spreads", spread, 0.0, 1.0)
-        check_int("held_out_episodes", self.held_out_episodes, 1)
-        check_int("held_out_seed", self.held_out_seed, 0)
         if self.held_out_seed == self.comparison_seed:
             raise ValueError(f"held_out_seed must differ from comparison_seed, both {self.held_out_seed}")
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 
@@ -22,20 +22,20 @@ from hipref.learners.imitation import (
 )
 from hipref.numerics import one_thread
 from hipref.sweep import CacheDir, Expect, cached_artefact, cached_prefix
-from hipref.validation import check_choice
+from hipref.validation import OneOf, check_fields
 
 
 @dataclass(frozen=True)
 class LowLevel:
     """The pi^l a task executes."""
 
-    kind: str = "admittance"
+    kind: Annotated[str, OneOf(LOW_LEVELS)] = "admittance"
     """'admittance' (the analytic stack of Fig. 6) or 'learned' (Algorithm 3's network)."""
     imitation: ImitationConfig = field(default_factory=ImitationConfig)
     """How the learned pi^l is trained (ignored for 'admittance')."""
 
     def __post_init__(self) -> None:
-        check_choice("low_level", self.kind, LOW_LEVELS)
+        check_fields(self)
         if not isinstance(self.imitation, ImitationConfig):
             raise ValueError(f"imitation must be an ImitationConfig, got {self.imitation!r}")
 

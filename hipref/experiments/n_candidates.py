@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import pandas as pd
 
@@ -11,28 +11,24 @@ from hipref.experiments.domains import DOMAINS
 from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import NonEmptyTuple, OneOf, Range, check_int
 
 
 @dataclass(frozen=True)
 class NCandidatesConfig(SIStudy):
     """PESI's error over episodes with N = 2 (Eq. 2) and more (Eq. 3) candidates per query."""
 
-    n_candidates: tuple[int, ...] = (2, 3, 5)
+    n_candidates: NonEmptyTuple[int] = (2, 3, 5)
     """Candidates per query, each >= 2."""
-    domain: str = "wiping"
+    domain: Annotated[str, OneOf(DOMAINS)] = "wiping"
     """'wiping' or 'pushing'."""
-    noise: float = 0.0
+    noise: Annotated[float, Range(0.0, 1.0)] = 0.0
     """Fraction of flipped preferences, in [0, 1]."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_choice("domain", self.domain, tuple(DOMAINS))
-        if not self.n_candidates:
-            raise ValueError("n_candidates must name at least one N, got ()")
         for n in self.n_candidates:
             check_int("n_candidates", n, 2, DOMAINS[self.domain].candidates.size)
-        check_range("noise", self.noise, 0.0, 1.0)
 
 
 def cells(cfg: NCandidatesConfig) -> list[SIRun]:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
@@ -33,7 +33,16 @@ from hipref.learners.sysid import CandidateSet
 from hipref.results import tidy_rows
 from hipref.sweep import run_sweep
 from hipref.teachers.preference import pair_labels
-from hipref.validation import check_choice, check_grids, check_int, check_range
+from hipref.validation import (
+    Integer,
+    NonEmptyTuple,
+    OneOf,
+    Range,
+    check_choice,
+    check_fields,
+    check_int,
+    check_range,
+)
 from hipref.verdicts import bootstrap_mean, trend
 
 PAPER_TABLE3: dict[float, float] = {
@@ -85,33 +94,24 @@ deviations over the repetitions."""
 class NoiseEstimationConfig:
     """Parameters of Table 3 (defaults: the paper's values, which are also the quick profile)."""
 
-    n_preferences: int = 256
+    n_preferences: Annotated[int, Integer(2, 100_000)] = 256
     """|D|, preferences per random dataset (A.9: 256)."""
-    repetitions: int = 100
+    repetitions: Annotated[int, Integer(1, 100_000)] = 100
     """Random datasets per true noise level (A.9: 100)."""
-    noise_levels: tuple[float, ...] = (0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4)
+    noise_levels: NonEmptyTuple[Annotated[float, Range(0.0, 1.0)]] = (0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4)
     """True fractions of flipped labels (Table 3: 0.10 to 0.40 in steps of 0.05)."""
-    domain: str = "wiping"
+    domain: Annotated[str, OneOf(DOMAINS)] = "wiping"
     """Whose parameter range the preferences are about: 'wiping' (desk height, A.9's example) or 'pushing'."""
     candidate_spacing: float = PAPER_EXAMPLE_SPACING
     """Spacing of the candidates over the domain's whole range, in its unit (m or kg); it must divide the
     range into whole steps. Default: A.9's example, 0.1 m (5 heights on [0.5, 0.9] m; 3.0 kg gives 5 masses
     on [8, 20] kg). The grids the learners see (`hipref.experiments.domains`) are 0.01 m (41 heights)
     and 0.25 kg (49 masses)."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Root seed; each dataset's generator derives from it, the noise level and the repetition."""
 
     def __post_init__(self) -> None:
-        check_grids(self)
-        check_int("n_preferences", self.n_preferences, 2, 100_000)
-        check_int("repetitions", self.repetitions, 1, 100_000)
-        if not self.noise_levels:
-            raise ValueError(
-                f"noise_levels must hold at least one level in [0.0, 1.0], got {self.noise_levels!r}"
-            )
-        for level in self.noise_levels:
-            check_range("noise_levels", level, 0.0, 1.0)
-        check_choice("domain", self.domain, tuple(DOMAINS))
+        check_fields(self)
         grid = DOMAINS[self.domain].candidates
         span = grid.high - grid.low
         spacing = self.candidate_spacing
@@ -121,7 +121,6 @@ class NoiseEstimationConfig:
                 f"candidate_spacing must be a number in (0, {span:g}] dividing the {self.domain} "
                 f"range [{grid.low:g}, {grid.high:g}] into whole steps, got {spacing!r}"
             )
-        check_int("seed", self.seed, 0)
 
     @property
     def candidates(self) -> CandidateSet:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 from hipref.experiments.domains import DOMAINS, domain_spec, truth_grids
 from hipref.experiments.si_methods import COTEACHING_METHODS, LEARNING_METHODS
@@ -14,7 +14,7 @@ from hipref.experiments.si_pretraining import PretrainCell, PretrainData, pretra
 from hipref.experiments.si_run import FineTuning, SIRun
 from hipref.learners.pesi import PESIConfig
 from hipref.sweep import CacheDir
-from hipref.validation import check_grids, check_int, check_range
+from hipref.validation import Integer, check_fields, check_int, check_range
 
 
 @dataclass(frozen=True)
@@ -26,21 +26,21 @@ class SIStudy:
     so methods are compared as paired differences (`hipref.verdicts`)."""
 
     SEQUENCES: ClassVar[tuple[str, ...]] = ()
-    """Tuple fields that are ordered values which may repeat, not grids of cells (`check_grids`)."""
+    """Tuple fields that are ordered values which may repeat, not grids of cells (`check_fields`)."""
 
     heights: tuple[float, ...] = (0.6, 0.8)
     """True desk heights in m of the wiping environments, each in [0.5, 0.9] (full profile: 5, evenly)."""
     masses: tuple[float, ...] = (11.0, 17.0)
     """True cube masses in kg of the pushing environments, each in [8, 20] (full profile: 5, evenly)."""
-    seeds: int = 1
+    seeds: Annotated[int, Integer(1)] = 1
     """Seeds per true parameter; truths x seeds is the repetitions of the paper (A.7: 15)."""
-    episodes: int = SIRun.episodes
+    episodes: Annotated[int, Integer(1)] = SIRun.episodes
     """Learning episodes per run, at least 1 (`SIRun.episodes`)."""
     eval_every: int = SIRun.eval_every
     """Learning episodes between evaluations (section 5: 33, `SIRun.eval_every`)."""
-    eval_episodes: int = SIRun.eval_episodes
+    eval_episodes: Annotated[int, Integer(1)] = SIRun.eval_episodes
     """Evaluation episodes per evaluation (section 5: 10, `SIRun.eval_episodes`)."""
-    eval_slices: int = SIRun.eval_slices
+    eval_slices: Annotated[int, Integer(1)] = SIRun.eval_slices
     """Probing slices per evaluation episode (for the multi-slice estimate, `SIRun.eval_slices`)."""
     n_trajectories: int = 300
     """Algorithm 4 trajectories (the full profile: 3000, the study's; A.7's 100 starve SI, notebook 13)."""
@@ -53,8 +53,8 @@ class SIStudy:
     """Gradient step size of SI fine-tuning (A.7: 0.01, `PESIConfig.learning_rate`)."""
 
     def __post_init__(self) -> None:
-        # Types, and every grid a list of distinct values, for every study built on this base.
-        check_grids(self, self.SEQUENCES)
+        # Every field of every study built on this base, by its annotation (`check_fields`).
+        check_fields(self, self.SEQUENCES)
         for domain, values in truth_grids(self).items():
             name, candidates = DOMAINS[domain].truths, DOMAINS[domain].candidates
             if not values:
@@ -63,11 +63,7 @@ class SIStudy:
                 )
             for value in values:
                 check_range(name, value, candidates.low, candidates.high)
-        check_int("seeds", self.seeds, 1)
-        check_int("episodes", self.episodes, 1)
         check_int("eval_every", self.eval_every, 1, self.episodes)
-        check_int("eval_episodes", self.eval_episodes, 1)
-        check_int("eval_slices", self.eval_slices, 1)
         PESIConfig(learning_rate=self.learning_rate)
         self.data  # noqa: B018 - validates n_trajectories, pretrain_steps and pretrain_loss
 

@@ -24,7 +24,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
@@ -46,7 +46,7 @@ from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
 from hipref.sweep import NO_CACHE, CacheDir, Expect, cached_artefact, run_sweep
 from hipref.teachers.feedback import ScriptedFeedbackTeacher
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Integer, Range, check_choice, check_fields
 
 START: Cell = (0, 0)
 """Every episode starts with the sponge above cell (0, 0), the start of the expert's sweep."""
@@ -56,47 +56,35 @@ START: Cell = (0, 0)
 class R1Config:
     """Parameters of notebook 01 (defaults: the quick profile; the paper's values in params/full)."""
 
-    episodes: int = 10
+    episodes: Annotated[int, Integer(1, 10_000)] = 10
     """Learning episodes per run (A.7: 50)."""
-    max_steps: int = 120
+    max_steps: Annotated[int, Integer(1, 100_000)] = 120
     """High-level steps per episode at most (A.7: 290); the flat policy gets the same simulated time."""
-    seeds: int = 2
+    seeds: Annotated[int, Integer(1, 1000)] = 2
     """Independent runs per method (paper: not given; full profile 2)."""
-    desk_height: float = 0.7
+    desk_height: Annotated[float, Range(0.5, 0.9)] = 0.7
     """True desk height in m, given to the controller (no SI in R1); in [0.5, 0.9]."""
-    coach_learning_rate: float = 0.5
+    coach_learning_rate: Annotated[float, Range(0.0, 100.0)] = 0.5
     """alpha of tabular COACH (Eq. 1)."""
-    demos: int = 100
+    demos: Annotated[int, Integer(1, 100_000)] = 100
     """Demonstration trajectories for pretraining the flat policy (paper: 1000)."""
-    demo_goals: int = 3
+    demo_goals: Annotated[int, Integer(1, 100)] = 3
     """Cells each demonstration follows the expert for, from a random start cell."""
-    chunk_periods: int = 10
+    chunk_periods: Annotated[int, Integer(1, 100)] = 10
     """Control periods (10 ms each) one low-level action of the flat policy lasts."""
-    hidden: int = 64
+    hidden: Annotated[int, Integer(4, 4096)] = 64
     """Hidden units per layer of the flat policy."""
-    bc_epochs: int = 30
+    bc_epochs: Annotated[int, Integer(0, 10_000)] = 30
     """Behaviour-cloning passes over the demonstrations."""
-    policy_learning_rate: float = 1e-2
+    policy_learning_rate: Annotated[float, Range(0.0, 10.0)] = 1e-2
     """SGD step size of Eq. 1 on the flat policy, one step per feedback."""
     stop_when_wiped: bool = True
     """End an episode once every cell is wiped (saves compute; the count cannot grow further)."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Root seed; every run's seed derives from it."""
 
     def __post_init__(self) -> None:
-        check_int("episodes", self.episodes, 1, 10_000)
-        check_int("max_steps", self.max_steps, 1, 100_000)
-        check_int("seeds", self.seeds, 1, 1000)
-        check_range("desk_height", self.desk_height, 0.5, 0.9)
-        check_range("coach_learning_rate", self.coach_learning_rate, 0.0, 100.0)
-        check_int("demos", self.demos, 1, 100_000)
-        check_int("demo_goals", self.demo_goals, 1, 100)
-        check_int("chunk_periods", self.chunk_periods, 1, 100)
-        check_int("hidden", self.hidden, 4, 4096)
-        check_int("bc_epochs", self.bc_epochs, 0, 10_000)
-        check_range("policy_learning_rate", self.policy_learning_rate, 0.0, 10.0)
-        check_choice("stop_when_wiped", self.stop_when_wiped, (True, False))
-        check_int("seed", self.seed, 0)
+        check_fields(self)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from hipref.experiments.domains import DOMAINS, truth_grids
 from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_int, check_range
+from hipref.validation import NonEmptyTuple, check_int, check_range
 
 METHODS: dict[str, tuple[str, ...]] = {"wiping": ("osi", "pesi", "pesi_ce"), "pushing": ("osi", "pesi")}
 """Fig. 2d and A.8 compare the three methods on desk height; Fig. 4 adds PESI against OSI on cube mass."""
@@ -44,7 +44,7 @@ class R1PESIConfig(SIStudy):
     held_out_masses: tuple[float, ...] = (15.0,)
     """True cube masses in kg of the held-out pushing environments, each in [8, 20] and none of `masses`
     (full profile: 4)."""
-    held_out_seeds: tuple[int, ...] = (100,)
+    held_out_seeds: NonEmptyTuple[int] = (100,)
     """Seeds of the held-out environments, none below `seeds` (the grid's are 0 .. seeds - 1)."""
 
     def __post_init__(self) -> None:
@@ -59,8 +59,6 @@ class R1PESIConfig(SIStudy):
                 check_range(name, value, candidates.low, candidates.high)
                 if value in grid:
                     raise ValueError(f"{name} must hold truths outside the grid, got {value} (in the grid)")
-        if not self.held_out_seeds:
-            raise ValueError("held_out_seeds must hold at least one seed, got ()")
         for seed in self.held_out_seeds:
             check_int("held_out_seeds", seed, self.seeds)
 

@@ -7,7 +7,7 @@ environment, so PESI at each noise level is compared with OSI (and with PESI at 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import pandas as pd
 
@@ -15,28 +15,17 @@ from hipref.experiments.domains import DOMAINS
 from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_range
+from hipref.validation import NonEmptyTuple, OneOf, Range
 
 
 @dataclass(frozen=True)
 class R2Config(SIStudy):
     """PESI's error over episodes at several levels of flipped preferences, in both domains."""
 
-    noise_levels: tuple[float, ...] = (0.0, 0.3, 0.6)
+    noise_levels: NonEmptyTuple[Annotated[float, Range(0.0, 1.0)]] = (0.0, 0.3, 0.6)
     """Fractions of flipped preferences, each in [0, 1] (paper: 0, 0.1, ..., 0.6)."""
-    domains: tuple[str, ...] = ("wiping", "pushing")
+    domains: NonEmptyTuple[Annotated[str, OneOf(DOMAINS)]] = ("wiping", "pushing")
     """Domains to run: Fig. 2e is wiping, Fig. 2f pushing."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()  # types and distinct grid values (`check_grids`) first
-        if not self.noise_levels or not self.domains:
-            raise ValueError(
-                f"noise_levels and domains must be non-empty, got {self.noise_levels!r} and {self.domains!r}"
-            )
-        for noise in self.noise_levels:
-            check_range("noise_levels", noise, 0.0, 1.0)
-        for domain in self.domains:
-            check_choice("domains", domain, tuple(DOMAINS))
 
 
 def cells(cfg: R2Config) -> list[SIRun]:

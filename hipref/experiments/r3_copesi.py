@@ -9,7 +9,7 @@ the last learning episode) with a bootstrap interval over seeds of the paired di
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
@@ -19,7 +19,7 @@ from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_methods import METHODS as SI_METHODS
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, OneOf, Range, check_choice, check_int
 from hipref.verdicts import Difference, better_on_both, combine, no_difference, paired_difference
 
 METHODS: tuple[str, ...] = ("pesi", "co_pesi")
@@ -30,24 +30,24 @@ METHODS: tuple[str, ...] = ("pesi", "co_pesi")
 class R3Config(SIStudy):
     """Parameters of notebook 04 (the paper's values where it gives them; the sizes of the quick profile)."""
 
-    domains: tuple[str, ...] = ("wiping", "pushing")
+    domains: NonEmptyTuple[Annotated[str, OneOf(DOMAINS)]] = ("wiping", "pushing")
     """Domains to run: 'wiping' (Fig. 3, desk height) and 'pushing' (Fig. 5, cube mass)."""
-    methods: tuple[str, ...] = METHODS
+    methods: NonEmptyTuple[Annotated[str, OneOf(SI_METHODS)]] = METHODS
     """Methods compared; Figs. 8 and 9 add 'co_pesi_estimated' and 'co_pesi_estimated_same_pair' (A.9)."""
-    noise_levels: tuple[float, ...] = (0.1, 0.2, 0.3)
+    noise_levels: NonEmptyTuple[Annotated[float, Range(0.0, 1.0)]] = (0.1, 0.2, 0.3)
     """Fractions of flipped preferences (section 5: 10, 20 and 30%)."""
     heights: tuple[float, ...] = (0.6,)
     """True desk heights in m of the wiping environments, each in [0.5, 0.9] (full profile: 5, evenly)."""
     masses: tuple[float, ...] = (11.0,)
     """True cube masses in kg of the pushing environments, each in [8, 20] (full profile: 5, evenly)."""
-    eval_episodes: int = 5
+    eval_episodes: Annotated[int, Integer(1)] = 5
     """Evaluation episodes per evaluation (section 5: 10)."""
     claim_episodes: tuple[int, ...] = ()
     """Learning episodes after which the claims of Figs. 3 and 5 are tested, each an evaluated one (the paper
     gives no horizon; empty: the last evaluation only; full profile: 5, from 33 to 330)."""
 
     def __post_init__(self) -> None:
-        super().__post_init__()  # types and distinct grid values (`check_grids`) first
+        super().__post_init__()  # every field by its annotation (`check_fields`) first
         evaluated = range(0, self.episodes + 1, self.eval_every)
         for episode in self.claim_episodes:
             check_int("claim_episodes", episode, self.eval_every, self.episodes)
@@ -56,20 +56,6 @@ class R3Config(SIStudy):
                     "claim_episodes must hold evaluated episodes (multiples of eval_every="
                     f"{self.eval_every} up to episodes={self.episodes}), got {episode}"
                 )
-        if not self.domains:
-            raise ValueError(f"domains must name at least one of {sorted(DOMAINS)}, got {self.domains!r}")
-        for domain in self.domains:
-            check_choice("domains", domain, DOMAINS)
-        if not self.methods:
-            raise ValueError(f"methods must name at least one of {list(SI_METHODS)}, got ()")
-        for method in self.methods:
-            check_choice("methods", method, SI_METHODS)
-        if not self.noise_levels:
-            raise ValueError(
-                f"noise_levels must hold at least one level in [0.0, 1.0], got {self.noise_levels!r}"
-            )
-        for level in self.noise_levels:
-            check_range("noise_levels", level, 0.0, 1.0)
 
 
 def cells(config: R3Config) -> list[SIRun]:

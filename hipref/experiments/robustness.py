@@ -17,7 +17,7 @@ smoke test whose intervals are single points); the full profile crosses every te
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
@@ -37,7 +37,7 @@ from hipref.seeds import integer_seed
 from hipref.sweep import run_sweep
 from hipref.teachers.models import TEACHER_KINDS, TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, OneOf, Range, check_fields
 from hipref.verdicts import Difference, better_on_both, bootstrap_mean, paired_difference, within
 
 BASELINE = "pesi"
@@ -75,14 +75,14 @@ claims' tolerance on the bias (estimate - true), a quarter of the paper's middle
 class RobustnessConfig(SIStudy):
     """Parameters of notebook 11 (the quick profile's sizes by default)."""
 
-    domains: tuple[str, ...] = ("wiping", "pushing")
+    domains: NonEmptyTuple[Annotated[str, OneOf(DOMAINS)]] = ("wiping", "pushing")
     """Domains to run: 'wiping' (desk height) and 'pushing' (cube mass)."""
-    teachers: tuple[str, ...] = QUICK_TEACHERS
+    teachers: NonEmptyTuple[Annotated[str, OneOf(TEACHER_KINDS)]] = QUICK_TEACHERS
     """Teacher models (`hipref.teachers.models.TEACHER_KINDS`); full profile: all of TEACHERS."""
-    methods: tuple[str, ...] = QUICK_LEARNERS
+    methods: NonEmptyTuple[Annotated[str, OneOf(SI_METHODS)]] = QUICK_LEARNERS
     """Learners (`hipref.experiments.si_methods.METHODS`); must include the baseline 'pesi'. Full profile:
     all of LEARNERS."""
-    noise: float = 0.2
+    noise: Annotated[float, Range(0.0, 1.0)] = 0.2
     """The flip rate of the 'mistake' teacher (the paper's middle level); the other teachers flip nothing
     on top of their own errors."""
     heights: tuple[float, ...] = (0.6,)
@@ -93,23 +93,13 @@ class RobustnessConfig(SIStudy):
     eval_every: int = 66
     """Learning episodes between evaluations (section 5: 33). By default equal to `episodes`: one evaluation
     before learning and one at the end, the only one the verdicts use."""
-    eval_episodes: int = 5
+    eval_episodes: Annotated[int, Integer(1)] = 5
     """Evaluation episodes per evaluation (section 5: 10)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name, values, allowed in (
-            ("domains", self.domains, tuple(DOMAINS)),
-            ("teachers", self.teachers, TEACHER_KINDS),
-            ("methods", self.methods, SI_METHODS),
-        ):
-            if not values:
-                raise ValueError(f"{name} must name at least one of {sorted(allowed)}, got ()")
-            for value in values:
-                check_choice(name, value, allowed)
         if BASELINE not in self.methods:
             raise ValueError(f"methods must include the baseline {BASELINE!r}, got {self.methods!r}")
-        check_range("noise", self.noise, 0.0, 1.0)
 
     def teacher_noise(self, teacher: str) -> float:
         """The uniform flip rate of a teacher's runs: `noise` for the paper's teacher, else 0."""
@@ -140,7 +130,7 @@ class TeacherNoiseCell:
 
     domain: str
     """'wiping' or 'pushing'."""
-    teacher: str
+    teacher: Annotated[str, OneOf(TEACHER_KINDS)]
     """The teacher model's kind."""
     noise: float
     """Its uniform flip rate."""
@@ -148,14 +138,13 @@ class TeacherNoiseCell:
     """The environment's true parameter."""
     seed: int
     """The environment's seed (with the truth, the same teacher and query streams as its SI runs)."""
-    episodes: int
+    episodes: Annotated[int, Integer(1)]
     """Queries answered."""
     data: PretrainData
     """Algorithm 4's data: the model whose clips the queries replay."""
 
     def __post_init__(self) -> None:
-        check_choice("teacher", self.teacher, TEACHER_KINDS)
-        check_int("episodes", self.episodes, 1)
+        check_fields(self)
 
 
 def run_teacher_noise(cell: TeacherNoiseCell) -> pd.DataFrame:

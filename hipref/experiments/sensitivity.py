@@ -15,7 +15,7 @@ paired (same truth, seed, teacher draws and evaluation episodes).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import pandas as pd
 
@@ -25,7 +25,7 @@ from hipref.experiments.si_pretraining import PAPER_A7, PretrainCell, pretrain_m
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
 from hipref.learners.pesi import PESIConfig
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_range
+from hipref.validation import Integer, NonEmptyTuple, OneOf, Range
 
 VARIANTS: dict[str, tuple[str, int | None, FineTuning]] = {
     "default": ("nll", None, FineTuning()),
@@ -60,32 +60,20 @@ class SensitivityConfig(SIStudy):
     `learning_rate` are not read: each variant sets its own (VARIANTS), and its trajectories where it names
     them."""
 
-    variants: tuple[str, ...] = ("default", "paper_a7")
+    variants: NonEmptyTuple[Annotated[str, OneOf(VARIANTS)]] = ("default", "paper_a7")
     """Which variants to run, each a key of VARIANTS (the full profile runs them all)."""
-    domains: tuple[str, ...] = ("wiping", "pushing")
+    domains: NonEmptyTuple[Annotated[str, OneOf(DOMAINS)]] = ("wiping", "pushing")
     """Domains to run."""
-    noise: float = 0.2
+    noise: Annotated[float, Range(1e-9, 0.5 - 1e-9)] = 0.2
     """Fraction of flipped preferences of the co-teaching comparison, in (0, 0.5)."""
     heights: tuple[float, ...] = (0.7,)
     """True desk heights in m of the wiping environments, each in [0.5, 0.9]."""
     masses: tuple[float, ...] = (14.0,)
     """True cube masses in kg of the pushing environments, each in [8, 20]."""
-    episodes: int = 33
+    episodes: Annotated[int, Integer(1)] = 33
     """Learning episodes per run, at least 1."""
-    eval_episodes: int = 5
+    eval_episodes: Annotated[int, Integer(1)] = 5
     """Evaluation episodes per evaluation (section 5: 10)."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if not self.variants or not self.domains:
-            raise ValueError(
-                f"variants and domains must be non-empty, got {self.variants!r} and {self.domains!r}"
-            )
-        for variant in self.variants:
-            check_choice("variants", variant, tuple(VARIANTS))
-        for domain in self.domains:
-            check_choice("domains", domain, tuple(DOMAINS))
-        check_range("noise", self.noise, 1e-9, 0.5 - 1e-9)
 
 
 def variant_protocol(config: SensitivityConfig, variant: str) -> tuple[SIStudy, FineTuning]:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Annotated, Any, ClassVar, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -23,47 +23,41 @@ from hipref.learners.sysid import PRETRAIN_LOSSES, PretrainConfig, SIModel, pret
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.sweep import NO_CACHE, CacheDir, Expect, cached_artefact, run_sweep
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, OneOf, Range, check_fields, check_int
 
 
 @dataclass(frozen=True)
 class PretrainData:
     """Algorithm 4's dataset D and the pretraining of SI (A.4, A.7)."""
 
-    n_trajectories: int = 3000
+    n_trajectories: Annotated[int, Integer(2)] = 3000
     """Domain-randomised trajectories in D (A.7: 100, which starve SI: notebook 13)."""
     trajectory_steps: int = 100
     """Control periods per trajectory (A.7: 100 states and actions)."""
-    history: int = 3
+    history: Annotated[int, Integer(1)] = 3
     """h, control periods per SI input slice (Table 2: 3)."""
-    pretrain_steps: int = 3000
+    pretrain_steps: Annotated[int, Integer(0)] = 3000
     """Adam steps of Algorithm 4 (its loop has no stated end)."""
-    learning_rate: float = 1e-3
+    learning_rate: Annotated[float, Range(1e-8, 1.0)] = 1e-3
     """Adam step size of Algorithm 4 (Table 2: 1e-3)."""
-    loss: str = "nll"
+    loss: Annotated[str, OneOf(PRETRAIN_LOSSES)] = "nll"
     """Algorithm 4's loss: 'nll', the negative log-likelihood of the true parameter's candidates, so that
     Pr(phi | tau) is a posterior (notebook 13: calibrated given enough data), or a mean squared loss as A.7
     says, over SI's distribution against the target distribution ('brier'), over its mean only
     ('expectation'), or both ('brier_expectation'); `hipref.learners.sysid.pretrain`."""
-    hidden_sizes: tuple[int, ...] = (256, 128, 64, 32)
+    hidden_sizes: NonEmptyTuple[Annotated[int, Integer(1)]] = (256, 128, 64, 32)
     """SI's hidden layers (Table 2: [256, 128, 64, 32], tanh)."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Seed of the collection and of the pretraining: one pretrained model per domain, shared by all runs."""
     low_level: LowLevel = field(default_factory=LowLevel)
     """The pi^l whose rollouts make D, and which every run that starts from this model executes."""
 
+    SEQUENCES: ClassVar[tuple[str, ...]] = ("hidden_sizes",)
+    """Layer widths, whose values may repeat (`check_fields`)."""
+
     def __post_init__(self) -> None:
-        check_choice("loss", self.loss, PRETRAIN_LOSSES)
-        check_int("n_trajectories", self.n_trajectories, 2)
-        check_int("trajectory_steps", self.trajectory_steps, self.history if self.history >= 1 else 1)
-        check_int("history", self.history, 1)
-        check_int("pretrain_steps", self.pretrain_steps, 0)
-        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
-        check_int("seed", self.seed, 0)
-        if not self.hidden_sizes or not all(isinstance(h, int) and h >= 1 for h in self.hidden_sizes):
-            raise ValueError(
-                f"hidden_sizes must be a non-empty tuple of positive integers, got {self.hidden_sizes!r}"
-            )
+        check_fields(self, self.SEQUENCES)
+        check_int("trajectory_steps", self.trajectory_steps, self.history)
 
     @property
     def collection(self) -> tuple[Any, ...]:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Annotated
 
 import numpy as np
 import pandas as pd
@@ -41,7 +42,7 @@ from hipref.seeds import integer_seed
 from hipref.sweep import cached_prefix
 from hipref.teachers.models import TeacherModel
 from hipref.teachers.preference import ScriptedPreferenceTeacher
-from hipref.validation import check_choice, check_field_types, check_int, check_range
+from hipref.validation import Integer, OneOf, Range, check_fields, check_int, check_range
 
 COTEACHING_SCHEDULES: tuple[str, ...] = ("learned", "reset_every_step")
 """How CO-PESI's classifiers are refreshed (`hipref.learners.coteaching.CoTeaching`): 'learned', the
@@ -63,17 +64,16 @@ class FineTuning:
     pesi: PESIConfig = PESIConfig()  # noqa: RUF009 - frozen, so a shared default is safe
     """The learner's settings (`hipref.learners.pesi.PESIConfig`: p, the learning rate, the query rule, the
     domain of Pr, the parameters fine-tuned); those of RUN_SET keep their defaults, the run sets them."""
-    coteaching_schedule: str = "learned"
+    coteaching_schedule: Annotated[str, OneOf(COTEACHING_SCHEDULES)] = "learned"
     """CO-PESI's classifier schedule, one of COTEACHING_SCHEDULES."""
 
     def __post_init__(self) -> None:
-        check_field_types(self)
+        check_fields(self)
         if not isinstance(self.pesi, PESIConfig):
             raise ValueError(f"pesi must be a PESIConfig, got {self.pesi!r}")
         for name in RUN_SET:
             if getattr(self.pesi, name) != getattr(PESIConfig, name):
                 raise ValueError(f"pesi.{name} is set by the run, got {getattr(self.pesi, name)!r}")
-        check_choice("coteaching_schedule", self.coteaching_schedule, COTEACHING_SCHEDULES)
 
 
 @dataclass(frozen=True)
@@ -82,25 +82,25 @@ class SIRun:
 
     domain: str
     """'wiping' (desk height) or 'pushing' (cube mass)."""
-    method: str
+    method: Annotated[str, OneOf(METHODS)]
     """One of METHODS."""
     ground_truth: float
     """The environment's true parameter, inside the domain's range."""
-    noise: float = 0.0
+    noise: Annotated[float, Range(0.0, 1.0)] = 0.0
     """Fraction of flipped preferences, in [0, 1]."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Seed of the teacher, the learner and the evaluation, together with the ground truth: the same seed
     and truth give every method the same teacher draws and the same evaluation episodes."""
     n_candidates: int = 2
     """N, candidates per query (Eq. 3, A.2); CO-PESI needs 2."""
-    episodes: int = 66
+    episodes: Annotated[int, Integer(1)] = 66
     """Learning episodes (preferences asked), at least 1: two evaluation periods of 33 by default, the quick
     profile's (the full profile: 330 in notebooks 02-04, 198 in 06 and 07, 99 in 08, 10 and 11)."""
     eval_every: int = 33
     """Learning episodes between evaluations (section 5: 33)."""
-    eval_episodes: int = 10
+    eval_episodes: Annotated[int, Integer(1)] = 10
     """Evaluation episodes per evaluation (section 5: 10)."""
-    eval_slices: int = 3
+    eval_slices: Annotated[int, Integer(1)] = 3
     """Probing slices per evaluation episode; the first drives the task attempt, all of them the
     multi-slice estimate."""
     fine_tuning: FineTuning = FineTuning()
@@ -110,7 +110,7 @@ class SIRun:
     teacher: TeacherModel = TeacherModel()  # noqa: RUF009 - frozen, so a shared default is safe
     """The scripted teacher's model (`hipref.teachers.models`); the paper's uniform flip of rate `noise`
     by default. Its rows carry a `teacher` column unless it is the default."""
-    told: str = "nothing"
+    told: Annotated[str, OneOf(TOLD)] = "nothing"
     """'bayes' only: what the learner is told of the teacher (`hipref.learners.answer_models.TOLD`): its
     'model', its 'kind', or 'nothing' (every model weighed by its marginal likelihood)."""
     checkpoints: tuple[int, ...] = ()
@@ -118,12 +118,9 @@ class SIRun:
     every `eval_every` (section 5)."""
 
     def __post_init__(self) -> None:
-        check_field_types(self)
+        check_fields(self)
         spec = domain_spec(self.domain)
-        check_choice("method", self.method, METHODS)
         check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
-        check_range("noise", self.noise, 0.0, 1.0)
-        check_int("seed", self.seed, 0)
         check_int("n_candidates", self.n_candidates, 2, spec.candidates.size)
         if self.method in PAIR_METHODS and self.n_candidates != 2:
             raise ValueError(
@@ -135,12 +132,8 @@ class SIRun:
             raise ValueError(f"noise must be 0 with the 'oracle' teacher, got {self.noise!r}")
         if self.teacher.kind == "distance" and self.n_candidates != 2:
             raise ValueError(f"n_candidates must be 2 for the 'distance' teacher, got {self.n_candidates}")
-        check_int("episodes", self.episodes, 1)
         if not self.checkpoints:
             check_int("eval_every", self.eval_every, 1, self.episodes)
-        check_int("eval_episodes", self.eval_episodes, 1)
-        check_int("eval_slices", self.eval_slices, 1)
-        check_choice("told", self.told, TOLD)
         if self.told != "nothing" and self.method not in BAYES_METHODS:
             raise ValueError(f"told is for the 'bayes' method, got method {self.method!r}")
         if self.method in BAYES_METHODS and self.fine_tuning.pesi.candidate_sampling == "belief":

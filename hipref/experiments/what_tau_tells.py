@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
@@ -39,7 +39,7 @@ from hipref.experiments.si_pretraining import (
 from hipref.learners.calibration import pit
 from hipref.results import tidy_rows
 from hipref.sweep import run_sweep
-from hipref.validation import check_choice, check_grids, check_int
+from hipref.validation import Integer, NonEmptyTuple, OneOf, check_choice, check_fields
 
 COLUMN_GROUPS: dict[str, tuple[int, int]] = {
     "joint_positions": (0, 6),
@@ -95,63 +95,44 @@ def osi_reading(name: str, n_largest: int, pretrain_steps: int) -> PretrainData:
 class TauConfig:
     """The measurements of notebook 13."""
 
-    domains: tuple[str, ...] = ("wiping", "pushing")
+    domains: NonEmptyTuple[Annotated[str, OneOf(DOMAINS)]] = ("wiping", "pushing")
     """Domains to measure."""
-    n_trajectories: tuple[int, ...] = (30, 100)
+    n_trajectories: NonEmptyTuple[Annotated[int, Integer(2, 100_000)]] = (30, 100)
     """Pretraining data sizes compared, in trajectories of 100 periods (100, 300, 1000, 3000 in the full
     profile); at least 100 are collected, so that the paper's OSI (A.7: 100) can be pretrained."""
-    base_trajectories: int = 100
+    base_trajectories: Annotated[int, Integer(2, 100_000)] = 100
     """The data size of the other factors' settings (h, cut, columns) and of the OSI readings' base."""
-    test_trajectories: int = 20
+    test_trajectories: Annotated[int, Integer(2, 10_000)] = 20
     """Held-out environments: trajectories of the `test_seed` collection, each with its own parameter."""
-    test_slices: int = 10
+    test_slices: Annotated[int, Integer(1, 90)] = 10
     """Slices scored per held-out environment, drawn among those the setting allows."""
-    slice_stride: int = 5
+    slice_stride: Annotated[int, Integer(1, 50)] = 5
     """A training slice starts every `slice_stride` periods (neighbouring slices share h - 1 periods)."""
-    histories: tuple[int, ...] = (1, 3)
+    histories: NonEmptyTuple[Annotated[int, Integer(1, 50)]] = (1, 3)
     """Slice lengths h compared."""
-    cuts: tuple[str, ...] = ("anywhere", "first_quarter", "last_quarter")
+    cuts: tuple[Annotated[str, OneOf(CUTS)], ...] = ("anywhere", "first_quarter", "last_quarter")
     """Where the slice is cut, keys of CUTS."""
-    column_sets: tuple[str, ...] = ("all", "without_wrist_force", "wrist_force")
+    column_sets: tuple[Annotated[str, OneOf(COLUMN_SETS)], ...] = (
+        "all",
+        "without_wrist_force",
+        "wrist_force",
+    )
     """Which columns are kept, keys of COLUMN_SETS."""
-    regressors: tuple[str, ...] = REGRESSORS
+    regressors: tuple[Annotated[str, OneOf(REGRESSORS)], ...] = REGRESSORS
     """Regressors fitted, of REGRESSORS."""
-    osi_readings: tuple[str, ...] = OSI_READINGS
+    osi_readings: tuple[Annotated[str, OneOf(OSI_READINGS)], ...] = OSI_READINGS
     """SI readings scored, of OSI_READINGS."""
-    pretrain_steps: int = 300
+    pretrain_steps: Annotated[int, Integer(0)] = 300
     """Adam steps of every OSI reading (the study's Algorithm 4 default: 3000)."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Seed of the training collection (0: Algorithm 4's own, so the first 100 trajectories are OSI's D)."""
-    test_seed: int = 1
+    test_seed: Annotated[int, Integer(0)] = 1
     """Seed of the held-out collection, different from `seed`."""
 
     def __post_init__(self) -> None:
-        check_grids(self)
-        if not self.domains or not self.n_trajectories or not self.histories:
-            raise ValueError("domains, n_trajectories and histories must be non-empty")
-        for domain in self.domains:
-            check_choice("domains", domain, tuple(DOMAINS))
-        for n in self.n_trajectories:
-            check_int("n_trajectories", n, 2, 100_000)
-        for h in self.histories:
-            check_int("histories", h, 1, 50)
+        check_fields(self)
         if BASE_HISTORY not in self.histories:
             raise ValueError(f"histories must include OSI's h = {BASE_HISTORY}, got {self.histories!r}")
-        for cut in self.cuts:
-            check_choice("cuts", cut, tuple(CUTS))
-        for columns in self.column_sets:
-            check_choice("column_sets", columns, tuple(COLUMN_SETS))
-        for regressor in self.regressors:
-            check_choice("regressors", regressor, REGRESSORS)
-        for reading in self.osi_readings:
-            check_choice("osi_readings", reading, OSI_READINGS)
-        check_int("base_trajectories", self.base_trajectories, 2, 100_000)
-        check_int("test_trajectories", self.test_trajectories, 2, 10_000)
-        check_int("test_slices", self.test_slices, 1, 90)
-        check_int("slice_stride", self.slice_stride, 1, 50)
-        check_int("pretrain_steps", self.pretrain_steps, 0)
-        check_int("seed", self.seed, 0)
-        check_int("test_seed", self.test_seed, 0)
         if self.test_seed == self.seed:
             raise ValueError(
                 f"test_seed must differ from seed={self.seed} (held-out environments), got it equal"

@@ -24,12 +24,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Annotated
 
 import numpy as np
 from scipy.special import ndtr
 
 from hipref.teachers.models import TeacherModel
-from hipref.validation import check_choice, check_range
+from hipref.validation import OneOf, Range, check_choice, check_fields, check_range
 
 ANSWER_KINDS: tuple[str, ...] = ("flip", "stochastic", "skip", "equal", "myopic", "distance")
 """The answer models, one per kind of scripted teacher ('flip': the oracle and the paper's 'mistake')."""
@@ -44,32 +45,25 @@ class AnswerModel:
 
     Distances are fractions of the parameter's range R, as in `hipref.teachers.models.TeacherModel`."""
 
-    kind: str = "flip"
+    kind: Annotated[str, OneOf(ANSWER_KINDS)] = "flip"
     """One of ANSWER_KINDS."""
-    flip: float = 0.0
+    flip: Annotated[float, Range(0.0, 1.0 - 1e-9)] = 0.0
     """e, the probability that a labelled answer is flipped after the rule, in [0, 1)."""
-    beta: float = 7.0
+    beta: Annotated[float, Range(0.0, math.inf)] = 7.0
     """'stochastic': the rationality of P(i) = softmax(-beta d)_i."""
-    skip_distance: float = 0.3
+    skip_distance: Annotated[float, Range(0.0, 1.0)] = 0.3
     """'skip': no answer when every candidate is farther than this fraction of the range."""
-    equal_margin: float = 0.05
+    equal_margin: Annotated[float, Range(0.0, 1.0)] = 0.05
     """'equal': 'equally good' when the two nearest candidates' distances differ by less than this."""
-    spread: float = 0.3
+    spread: Annotated[float, Range(1e-9, math.inf)] = 0.3
     """'myopic': the standard deviation of the teacher's picture of the truth, a fraction of the range."""
-    confusion_max: float = 0.5
+    confusion_max: Annotated[float, Range(0.0, 1.0)] = 0.5
     """'distance': the probability of a wrong answer for a pair equally near the truth."""
-    confusion_width: float = 0.21
+    confusion_width: Annotated[float, Range(1e-9, math.inf)] = 0.21
     """'distance': the difference of closeness over which that probability falls by a factor e."""
 
     def __post_init__(self) -> None:
-        check_choice("kind", self.kind, ANSWER_KINDS)
-        check_range("flip", self.flip, 0.0, 1.0 - 1e-9)
-        check_range("beta", self.beta, 0.0, math.inf)
-        check_range("skip_distance", self.skip_distance, 0.0, 1.0)
-        check_range("equal_margin", self.equal_margin, 0.0, 1.0)
-        check_range("spread", self.spread, 1e-9, math.inf)
-        check_range("confusion_max", self.confusion_max, 0.0, 1.0)
-        check_range("confusion_width", self.confusion_width, 1e-9, math.inf)
+        check_fields(self)
 
     def probabilities(self, offsets: np.ndarray) -> np.ndarray:
         """P(answer | phi) for offsets (..., N) = (phi_i - phi) / R: shape (..., N + 2), the N candidates,

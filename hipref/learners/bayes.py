@@ -33,6 +33,7 @@ from __future__ import annotations
 import operator
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Annotated
 
 import numpy as np
 import torch
@@ -42,7 +43,7 @@ from hipref.learners.answer_models import EQUAL_COLUMN, SKIP_COLUMN, AnswerModel
 from hipref.learners.queries import QUERY_RULES, choose_pair, pair_table
 from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.teachers.preference import EQUAL, NoLabel, PreferenceQuery, preference_label_vector
-from hipref.validation import check_choice, check_int
+from hipref.validation import Integer, OneOf, check_fields, check_int
 
 PRIORS: tuple[str, ...] = ("uniform", "si")
 """The prior over phi: uniform over the range, or SI's Pr(phi | tau) on the slice estimated for."""
@@ -200,24 +201,23 @@ class PreferencePosterior:
 class BayesConfig:
     """The Bayesian preference learner's options."""
 
-    n_candidates: int = 2
+    n_candidates: Annotated[int, Integer(2)] = 2
     """N, candidates per query; the chosen query rules ask pairs."""
-    query_rule: str = "uniform"
+    query_rule: Annotated[str, OneOf(QUERY_RULES)] = "uniform"
     """How queries are chosen, one of QUERY_RULES (`hipref.learners.queries`)."""
     answer_models: tuple[AnswerModel, ...] | None = None
     """The answer models weighed by their marginal likelihood: one if told the teacher's model (`told`),
     a kind's grid if told its kind (`hypotheses`); None: every model of `model_family()`."""
-    prior: str = "uniform"
+    prior: Annotated[str, OneOf(PRIORS)] = "uniform"
     """One of PRIORS: 'uniform', or 'si' (SI's Pr(phi | tau) on the slice estimated for)."""
-    estimate: str = "median"
+    estimate: Annotated[str, OneOf(ESTIMATES)] = "median"
     """One of ESTIMATES: 'median', 'mean', or 'expected_success' (needs a success curve)."""
-    refine: int = 4
+    refine: Annotated[int, Integer(2)] = 4
     """Points of the posterior per step of Phi (even): 4 puts one on every pair midpoint and one inside
     every interval between midpoints, where the flip model's posterior is constant."""
 
     def __post_init__(self) -> None:
-        check_int("n_candidates", self.n_candidates, 2)
-        check_choice("query_rule", self.query_rule, QUERY_RULES)
+        check_fields(self)
         if self.query_rule != "uniform" and self.n_candidates != 2:
             raise ValueError(
                 f"query_rule {self.query_rule!r} asks pairs: n_candidates must be 2, got {self.n_candidates}"
@@ -226,9 +226,6 @@ class BayesConfig:
             not self.answer_models or not all(isinstance(m, AnswerModel) for m in self.answer_models)
         ):
             raise ValueError(f"answer_models must be AnswerModels or None, got {self.answer_models!r}")
-        check_choice("prior", self.prior, PRIORS)
-        check_choice("estimate", self.estimate, ESTIMATES)
-        check_int("refine", self.refine, 2)
 
 
 SuccessCurve = tuple[np.ndarray, np.ndarray]

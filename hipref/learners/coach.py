@@ -13,29 +13,29 @@ from __future__ import annotations
 import numbers
 from collections.abc import Hashable
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
 from hipref.teachers.feedback import FeedbackQuery, validate_feedback
-from hipref.validation import check_int, check_range
+from hipref.validation import Range, check_fields, check_int
 
 
 @dataclass(frozen=True)
 class CoachConfig:
     """Step size and eligibility trace of tabular COACH."""
 
-    learning_rate: float = 0.5
+    learning_rate: Annotated[float, Range(0.0, 1e3)] = 0.5
     """alpha in theta[s] += alpha * f * grad log pi(a|s). The paper gives no value; at 0.5 five consistent
     positive feedbacks raise an action's probability from 0.25 (uniform over four moves) to about 0.68, so
     the 50 feedback episodes of A.7 are plenty."""
-    trace_decay: float = 0.0
+    trace_decay: Annotated[float, Range(0.0, 1.0)] = 0.0
     """lambda of Real-time COACH's eligibility trace e <- lambda * e + grad log pi(a|s), in [0, 1]. It lets a
     feedback also credit the steps just before the one asked about (useful when a person's feedback lags).
     0 (the default) is plain Eq. 1: each feedback updates only the queried state."""
 
     def __post_init__(self) -> None:
-        check_range("learning_rate", self.learning_rate, 0.0, 1e3)
-        check_range("trace_decay", self.trace_decay, 0.0, 1.0)
+        check_fields(self)
 
 
 class TabularCoach:

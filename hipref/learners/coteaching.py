@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
 
 from hipref.learners.coteaching_pair import CoTeachingPair, classifier_inputs
 from hipref.learners.filters import Filter, SILearner, UpdateLog
-from hipref.validation import check_choice, check_field_types, check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, OneOf, Range, check_fields
 
 REFRESH_UNITS: tuple[str, ...] = ("preferences", "steps")
 """What f_refresh counts: received preferences |D| (default) or classifier co-teaching steps (the
@@ -79,28 +79,28 @@ class CoTeaching:
     steps and restarted with every fresh network.
     """
 
-    classifier_learning_rate: float = 1e-2
+    classifier_learning_rate: Annotated[float, Range(1e-8, 1.0)] = 1e-2
     """Adam step size of the co-teaching classifiers M_0, M_1 (Table 2)."""
-    classifier_hidden_sizes: tuple[int, ...] = (64, 64)
+    classifier_hidden_sizes: NonEmptyTuple[Annotated[int, Integer(1)]] = (64, 64)
     """Hidden layer widths of M_0 and M_1, ReLU activations (Table 2)."""
-    refresh_frequency: int = 16
+    refresh_frequency: Annotated[int, Integer(1)] = 16
     """f_refresh: M_0 and M_1 are re-initialised each time the counted quantity (`refresh_unit`) reaches a
     multiple of this (Alg. 1 l.6-7; Table 2: 16 for height, 32 for mass), so they never run long enough
     to memorise the noise."""
-    refresh_unit: str = "preferences"
+    refresh_unit: Annotated[str, OneOf(REFRESH_UNITS)] = "preferences"
     """What f_refresh counts. 'preferences': |D|, the preferences received (Alg. 1 checks the frequency
     once per received preference, l.6); the classifiers are re-initialised before the co-teaching of the
     preference that brings |D| to a multiple of f_refresh, so they train for f_refresh * rounds steps
     between refreshes. 'steps': classifier co-teaching steps, the reset-every-step
     schedule (with rounds=1 a refresh every f_refresh steps of one minibatch each)."""
-    rounds: int = 10
+    rounds: Annotated[int, Integer(1)] = 10
     """t, 'Co-teaching Rounds' (Algorithm 1's input): classifier co-teaching steps (l.9-13) per received
     preference, before the one SI update on the last step's b_0. Chosen by measurement (class docstring)."""
-    ramp_steps: int = 10
+    ramp_steps: Annotated[int, Integer(0)] = 10
     """Classifier steps over which the forget rate rises linearly from 0 to its final value (Han et al.
     ramp it over their first 10 epochs: a network fits clean data first, and an untrained network's
     losses say nothing about which labels are flipped). 0 forgets the full amount from the first step."""
-    ramp_origin: str = "refresh"
+    ramp_origin: Annotated[str, OneOf(RAMP_ORIGINS)] = "refresh"
     """'refresh': the ramp restarts at every (re-)initialisation, since each refresh starts an untrained
     network, as in Han et al. 'start': it runs once from the first co-teaching step (the reset-every-step
     schedule, where a restart would keep the forget rate low for most of each 16-step refresh period)."""
@@ -111,21 +111,11 @@ class CoTeaching:
 
     pairs_only = True
 
+    SEQUENCES: ClassVar[tuple[str, ...]] = ("classifier_hidden_sizes",)
+    """Layer widths, whose values may repeat (`check_fields`)."""
+
     def __post_init__(self) -> None:
-        check_field_types(self)
-        check_range("classifier_learning_rate", self.classifier_learning_rate, 1e-8, 1.0)
-        if not self.classifier_hidden_sizes or not all(
-            isinstance(h, int) and h >= 1 for h in self.classifier_hidden_sizes
-        ):
-            raise ValueError(
-                f"classifier_hidden_sizes must be a non-empty tuple of positive integers, "
-                f"got {self.classifier_hidden_sizes!r}"
-            )
-        check_int("refresh_frequency", self.refresh_frequency, 1)
-        check_choice("refresh_unit", self.refresh_unit, REFRESH_UNITS)
-        check_int("rounds", self.rounds, 1)
-        check_int("ramp_steps", self.ramp_steps, 0)
-        check_choice("ramp_origin", self.ramp_origin, RAMP_ORIGINS)
+        check_fields(self, self.SEQUENCES)
 
     def start(self, learner: SILearner) -> Filter:
         return CoTeachingFilter(learner, self)

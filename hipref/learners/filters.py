@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol
+from typing import Annotated, NamedTuple, Protocol
 
 import numpy as np
 import torch
@@ -24,7 +24,7 @@ import torch
 from hipref.learners.coteaching_pair import coteach_select
 from hipref.learners.losses import preference_nll
 from hipref.learners.sysid import SIModel
-from hipref.validation import check_field_types, check_range
+from hipref.validation import Range, check_fields, check_range
 
 
 class SILearner(Protocol):
@@ -221,14 +221,14 @@ class TrustFlip:
     not used as told (left out or flipped) as forgotten. RIME's warm start is the pretrained SI; the
     thresholds' values are ours."""
 
-    trust_probability: float = 0.5
+    trust_probability: Annotated[float, Range(1e-9, 1.0)] = 0.5
     """rho; a preference is trusted when its loss -log Pr(preferred) is below -ln(rho) + beta_t * std(batch
     losses): SI gives the label at least rho, before the uncertainty term."""
-    trust_spread_start: float = 3.0
+    trust_spread_start: Annotated[float, Range(0.0, math.inf)] = 3.0
     """beta_t at the first filtered update (RIME: beta_max = 3)."""
     trust_spread_end: float = 1.0
     """The floor of beta_t (RIME: beta_min = 1)."""
-    trust_spread_decay: float = 1.0 / 30.0
+    trust_spread_decay: Annotated[float, Range(0.0, math.inf)] = 1.0 / 30.0
     """beta_t = max(beta_end, beta_start - decay * t), t counting filtered updates."""
     flip_probability: float = 0.05
     """A label is flipped (used as -y) when SI gives it less than this probability, i.e. its loss exceeds
@@ -236,11 +236,8 @@ class TrustFlip:
     pairs_only = True
 
     def __post_init__(self) -> None:
-        check_field_types(self)
-        check_range("trust_probability", self.trust_probability, 1e-9, 1.0)
-        check_range("trust_spread_start", self.trust_spread_start, 0.0, math.inf)
+        check_fields(self)
         check_range("trust_spread_end", self.trust_spread_end, 0.0, self.trust_spread_start)
-        check_range("trust_spread_decay", self.trust_spread_decay, 0.0, math.inf)
         check_range("flip_probability", self.flip_probability, 1e-9, self.trust_probability)
 
     def start(self, learner: SILearner) -> Filter:

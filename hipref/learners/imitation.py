@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, NamedTuple, Protocol, TypeVar
+from typing import Annotated, Any, ClassVar, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 import torch
@@ -39,7 +39,7 @@ from torch import nn
 
 from hipref.learners.mlp import tanh_mlp
 from hipref.numerics import adam
-from hipref.validation import check_grids, check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, Range, check_fields, check_int
 
 JOINTS = 6
 """Joints of the arm: q_bar's size, and the first values of a state (the joint positions)."""
@@ -63,32 +63,32 @@ class ImitationConfig:
     """Algorithm 3's size and the network of pi^l (the paper gives neither; the defaults are the study's full
     profile, notebook 10)."""
 
-    iterations: int = 600
+    iterations: Annotated[int, Integer(1)] = 600
     """Iterations of Algorithm 3: trajectories of P collected, one per iteration."""
-    updates_per_iteration: int = 25
+    updates_per_iteration: Annotated[int, Integer(1)] = 25
     """MSE updates of pi^l per collected trajectory (line 10, repeated)."""
-    batch_size: int = 128
+    batch_size: Annotated[int, Integer(1)] = 128
     """N, rows per update."""
-    hidden: tuple[int, ...] = (256, 256)
+    hidden: NonEmptyTuple[Annotated[int, Integer(1, 4096)]] = (256, 256)
     """Widths of the MLP's hidden layers (tanh)."""
-    learning_rate: float = 1e-3
+    learning_rate: Annotated[float, Range(1e-8, 1.0)] = 1e-3
     """Adam step size."""
-    perturbation: float = 0.005
+    perturbation: Annotated[float, Range(0.0, 0.5)] = 0.005
     """Stationary spread in rad of the perturbation of each joint's reference in demonstrations (0: none)."""
-    perturbation_time: float = 0.2
+    perturbation_time: Annotated[float, Range(1e-3, 10.0)] = 0.2
     """Correlation time in s of the perturbation: slow enough that the arm follows it off P's path."""
-    estimate_spread: float = 0.0
+    estimate_spread: Annotated[float, Range(0.0, 1.0)] = 0.0
     """Half-width, as a fraction of the parameter range, of the estimate phi P is told around the truth phi*
     the simulator is set to (`estimate_around`); each row is labelled with phi. 0: phi = phi*, Algorithm 3
     read as the paper writes it; 1: phi independent of phi*, uniform over the range."""
-    blind: tuple[int, ...] = ()
+    blind: tuple[Annotated[int, Integer(JOINTS)], ...] = ()
     """Columns of the state pi^l does not see (0 in its inputs, in R and when it acts), each past the joint
     positions: e.g. the last period's joint reference (`hipref.envs.low_level.REFERENCE`), from which the
     next reference can be extrapolated without reading phi. (): the whole state."""
     normalise_after: int = 10
     """Trajectories in R from whose rows the inputs' and outputs' standardisation is measured; updates
     begin once it is (earlier iterations only collect)."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Seed of the sampled goals and parameters, the batches and the network's initial weights."""
     snapshots: tuple[int, ...] = ()
     """Iterations after which a copy of pi^l is also kept (`ImitationResult.snapshots`): its learning curve.
@@ -96,27 +96,11 @@ class ImitationConfig:
     trains."""
 
     SEQUENCES: ClassVar[tuple[str, ...]] = ("hidden",)
-    """Layer widths, whose values may repeat (`check_grids`)."""
+    """Layer widths, whose values may repeat (`check_fields`)."""
 
     def __post_init__(self) -> None:
-        check_grids(self, self.SEQUENCES)
-        check_int("iterations", self.iterations, 1)
-        check_int("updates_per_iteration", self.updates_per_iteration, 1)
-        check_int("batch_size", self.batch_size, 1)
-        if not self.hidden:
-            raise ValueError("hidden must hold at least one layer width, got ()")
-        for width in self.hidden:
-            check_int("hidden", width, 1, 4096)
-        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
-        check_range("perturbation", self.perturbation, 0.0, 0.5)
-        check_range("perturbation_time", self.perturbation_time, 1e-3, 10.0)
-        check_range("estimate_spread", self.estimate_spread, 0.0, 1.0)
-        for column in self.blind:
-            check_int("blind", column, JOINTS)
-        if len(set(self.blind)) != len(self.blind):
-            raise ValueError(f"blind must hold distinct columns, got {list(self.blind)!r}")
+        check_fields(self, self.SEQUENCES)
         check_int("normalise_after", self.normalise_after, 1, self.iterations)
-        check_int("seed", self.seed, 0)
         for iteration in self.snapshots:
             check_int("snapshots", iteration, self.normalise_after, self.iterations)
 

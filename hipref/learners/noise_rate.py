@@ -25,12 +25,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Annotated, Protocol
 
 import numpy as np
 
 from hipref.learners.noise_estimation import CONFLICTS, DEFAULT_CONFLICT, PreferenceSet, estimate_noise
-from hipref.validation import check_choice, check_field_types, check_int, check_range
+from hipref.validation import OneOf, Range, check_fields, check_int, check_range
 
 
 def likelihood_noise(preferences: PreferenceSet, low: float, high: float, resolution: int = 1000) -> float:
@@ -99,13 +99,12 @@ class Told:
     """The flip rate the learner is told: the teacher's true one (co_pesi), or 0 (a learner that trusts
     every label)."""
 
-    value: float = 0.0
+    value: Annotated[float, Range(0.0, 1.0)] = 0.0
     """e, in [0, 1]."""
     estimated = False
 
     def __post_init__(self) -> None:
-        check_field_types(self)
-        check_range("value", self.value, 0.0, 1.0)
+        check_fields(self)
 
     def rate(self, preferences: Callable[[], PreferenceSet], low: float, high: float) -> float:
         return self.value
@@ -116,13 +115,12 @@ class Algorithm5:
     """Algorithm 5's estimate on D (A.9, co_pesi_estimated), a conflict read as `conflict`; with no
     conflict at all it is 1.0, taken as written."""
 
-    conflict: str = DEFAULT_CONFLICT
+    conflict: Annotated[str, OneOf(CONFLICTS)] = DEFAULT_CONFLICT
     """One of `hipref.learners.noise_estimation.CONFLICTS`."""
     estimated = True
 
     def __post_init__(self) -> None:
-        check_field_types(self)
-        check_choice("conflict", self.conflict, CONFLICTS)
+        check_fields(self)
 
     def rate(self, preferences: Callable[[], PreferenceSet], low: float, high: float) -> float:
         return estimate_noise(preferences(), self.conflict)
@@ -132,14 +130,13 @@ class Algorithm5:
 class Likelihood:
     """The maximum marginal likelihood flip rate of D (`likelihood_noise`), at most `cap`."""
 
-    cap: float = 0.5
+    cap: Annotated[float, Range(0.0, 0.5)] = 0.5
     """The largest rate given, in [0, 0.5] (the unbiased loss divides by 1 - 2 e, so its learners cap
     lower)."""
     estimated = True
 
     def __post_init__(self) -> None:
-        check_field_types(self)
-        check_range("cap", self.cap, 0.0, 0.5)
+        check_fields(self)
 
     def rate(self, preferences: Callable[[], PreferenceSet], low: float, high: float) -> float:
         return min(self.cap, likelihood_noise(preferences(), low, high))

@@ -17,6 +17,7 @@ import copy
 import operator
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import torch
@@ -30,7 +31,7 @@ from hipref.learners.queries import CHOSEN, choose_pair
 from hipref.learners.sysid import SIModel
 from hipref.seeds import integer_seed
 from hipref.teachers.preference import NoLabel, PreferenceQuery, preference_label_vector
-from hipref.validation import check_choice, check_field_types, check_int, check_range
+from hipref.validation import Integer, OneOf, Range, check_choice, check_fields, check_int
 
 CANDIDATE_SAMPLING: tuple[str, ...] = ("uniform", "belief", *CHOSEN)
 """How Algorithm 2 draws the queried candidates from Phi (see `PESILearner.ask`): uniformly, from SI's
@@ -47,60 +48,48 @@ FINE_TUNED: tuple[str, ...] = ("all", "last_layer", "output_bias")
 class PESIConfig:
     """Algorithm 2: preference fine-tuning of SI."""
 
-    loss: str = "soft"
+    loss: Annotated[str, OneOf(SI_LOSSES)] = "soft"
     """One of `hipref.learners.losses.SI_LOSSES`: 'soft' (Eq. 2 / Eq. 3, the method 'pesi'), 'standard'
     (cross-entropy, the ablation 'pesi_ce'), 'smoothed' or 'unbiased' (pairs only)."""
-    smoothing: float = 0.1
+    smoothing: Annotated[float, Range(0.0, 0.5 - 1e-9)] = 0.1
     """eps of the 'smoothed' loss, the weight of the reversed label, in [0, 0.5) (conservative DPO commonly
     uses 0.1)."""
-    encourage_percentage: float = 0.25
+    encourage_percentage: Annotated[float, Range(0.0, 1.0)] = 0.25
     """p of Eq. 2, how far one preference moves the target toward the preferred candidate (A.7: 0.25)."""
-    learning_rate: float = 1e-2
+    learning_rate: Annotated[float, Range(1e-8, 1.0)] = 1e-2
     """Step size of SI fine-tuning (A.7: 'the finetuning process is conducted for learning rate of 0.01';
     Table 2's 1e-3 is Algorithm 4's pretraining rate)."""
-    batch_size: int = 16
+    batch_size: Annotated[int, Integer(1)] = 16
     """Preferences per SI update, drawn from the buffer (Table 2: 16 for desk height, 32 for cube mass)."""
-    n_candidates: int = 2
+    n_candidates: Annotated[int, Integer(2)] = 2
     """N, candidates per query: 2 is Eq. 2, more is Eq. 3 (A.2)."""
-    history: int = 3
+    history: Annotated[int, Integer(1)] = 3
     """h, control periods per trajectory slice tau (Algorithm 2's input; Table 2: 3)."""
-    candidate_sampling: str = "uniform"
+    candidate_sampling: Annotated[str, OneOf(CANDIDATE_SAMPLING)] = "uniform"
     """'uniform': phi_0..phi_{N-1} drawn uniformly from Phi (Algorithm 2: 'sampled from Phi'); 'belief':
     drawn from SI's Pr(phi) at the previous query's slice, mixed with `query_uniform_mix` of uniform; or a
     query rule of `hipref.learners.queries` ('thompson', 'information_gain', 'volume_removal') scoring
     pairs on that Pr (uniform before the first query) with the flip model's likelihood, pairs only."""
-    query_uniform_mix: float = 0.05
+    query_uniform_mix: Annotated[float, Range(1e-9, 1.0)] = 0.05
     """With 'belief' sampling, the weight of a uniform distribution mixed into Pr(phi), in (0, 1]: it keeps
     every candidate askable and lets N distinct candidates be drawn even from a collapsed distribution."""
-    pr_domain: str = "query"
+    pr_domain: Annotated[str, OneOf(PR_DOMAINS)] = "query"
     """Pr of Eq. 2/3 over the queried candidates ('query') or over all of Phi ('all'); see `log_probs`."""
-    fine_tuned: str = "all"
+    fine_tuned: Annotated[str, OneOf(FINE_TUNED)] = "all"
     """Which parameters of SI the preferences update: 'all' (Algorithm 2 'update SI'), 'last_layer' or
     'output_bias'."""
-    start_size: int = 16
+    start_size: Annotated[int, Integer(0)] = 16
     """s: a filter, and an estimate of the flip rate, start once |D| > s (Alg. 1 l.5); before that SI is
     updated on unfiltered batches as PESI does. Not given in the paper; by default a full batch must be
     available."""
 
     def __post_init__(self) -> None:
-        check_field_types(self)
-        check_choice("loss", self.loss, SI_LOSSES)
-        check_range("smoothing", self.smoothing, 0.0, 0.5 - 1e-9)
-        check_int("start_size", self.start_size, 0)
-        check_range("encourage_percentage", self.encourage_percentage, 0.0, 1.0)
-        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
-        check_int("batch_size", self.batch_size, 1)
-        check_int("n_candidates", self.n_candidates, 2)
-        check_int("history", self.history, 1)
-        check_choice("candidate_sampling", self.candidate_sampling, CANDIDATE_SAMPLING)
+        check_fields(self)
         if self.candidate_sampling in CHOSEN and self.n_candidates != 2:
             raise ValueError(
                 f"candidate_sampling {self.candidate_sampling!r} asks pairs: n_candidates must be 2, "
                 f"got {self.n_candidates}"
             )
-        check_range("query_uniform_mix", self.query_uniform_mix, 1e-9, 1.0)
-        check_choice("pr_domain", self.pr_domain, PR_DOMAINS)
-        check_choice("fine_tuned", self.fine_tuned, FINE_TUNED)
 
 
 def fine_tuned_parameters(model: SIModel, fine_tuned: str) -> list[torch.nn.Parameter]:

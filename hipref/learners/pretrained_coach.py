@@ -15,6 +15,7 @@ any other.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import torch
@@ -22,27 +23,24 @@ from torch import nn
 
 from hipref.numerics import adam
 from hipref.teachers.feedback import FeedbackQuery, validate_feedback
-from hipref.validation import check_int, check_range
+from hipref.validation import Integer, Range, check_fields, check_int
 
 
 @dataclass(frozen=True)
 class PretrainedCoachConfig:
     """The flat policy, its behaviour-cloning pretraining and its feedback updates."""
 
-    hidden: int = 64
+    hidden: Annotated[int, Integer(4, 4096)] = 64
     """Units in each of the MLP's two hidden layers."""
-    bc_epochs: int = 30
+    bc_epochs: Annotated[int, Integer(0, 10_000)] = 30
     """Passes over the demonstrations in behaviour cloning."""
-    bc_learning_rate: float = 3e-3
+    bc_learning_rate: Annotated[float, Range(0.0, 1.0)] = 3e-3
     """Adam step size of behaviour cloning."""
-    learning_rate: float = 1e-2
+    learning_rate: Annotated[float, Range(0.0, 10.0)] = 1e-2
     """SGD step size of the Eq. 1 update, one step per feedback (the paper gives no value)."""
 
     def __post_init__(self) -> None:
-        check_int("hidden", self.hidden, 4, 4096)
-        check_int("bc_epochs", self.bc_epochs, 0, 10_000)
-        check_range("bc_learning_rate", self.bc_learning_rate, 0.0, 1.0)
-        check_range("learning_rate", self.learning_rate, 0.0, 10.0)
+        check_fields(self)
 
 
 class FlatPolicy(nn.Module):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import torch
@@ -16,23 +17,22 @@ from torch import nn
 
 from hipref.learners.mlp import tanh_mlp
 from hipref.numerics import adam
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Integer, OneOf, Range, check_fields, check_int, check_range
 
 
 @dataclass(frozen=True)
 class CandidateSet:
     """Phi: evenly spaced candidate values low, low + resolution, ..., high of one unknown parameter."""
 
-    low: float
+    low: Annotated[float, Range(-1e9, 1e9)]
     """Smallest candidate, in parameter units (the lower end of the randomisation range)."""
-    high: float
+    high: Annotated[float, Range(-1e9, 1e9)]
     """Largest candidate, in parameter units; high - low must be a whole number of `resolution` steps."""
     resolution: float
     """Spacing between neighbouring candidates, in parameter units."""
 
     def __post_init__(self) -> None:
-        check_range("low", self.low, -1e9, 1e9)
-        check_range("high", self.high, -1e9, 1e9)
+        check_fields(self)
         if self.high <= self.low:
             raise ValueError(f"high must be greater than low={self.low}, got {self.high}")
         check_range("resolution", self.resolution, 1e-12, self.high - self.low)
@@ -183,22 +183,19 @@ PRETRAIN_LOSSES: tuple[str, ...] = ("brier", "expectation", "brier_expectation",
 class PretrainConfig:
     """Algorithm 4: supervised pretraining of SI on domain-randomised (features, parameter) pairs."""
 
-    learning_rate: float = 1e-3
+    learning_rate: Annotated[float, Range(1e-8, 1.0)] = 1e-3
     """Adam step size (Table 2, 'System Identification Learning Rate')."""
-    batch_size: int = 128
+    batch_size: Annotated[int, Integer(1)] = 128
     """l, samples per minibatch. Not given in the paper."""
-    n_steps: int = 3000
+    n_steps: Annotated[int, Integer(0)] = 3000
     """Gradient steps (the loop of Algorithm 4 has no stated end)."""
-    loss: str = "brier"
+    loss: Annotated[str, OneOf(PRETRAIN_LOSSES)] = "brier"
     """'brier': squared error between Pr(phi) and the target distribution (default); 'expectation': squared
     error between E_Pr[phi] and phi only; 'brier_expectation': their sum; 'nll': the negative log-likelihood
     of the target distribution. See `pretrain`."""
 
     def __post_init__(self) -> None:
-        check_range("learning_rate", self.learning_rate, 1e-8, 1.0)
-        check_int("batch_size", self.batch_size, 1)
-        check_int("n_steps", self.n_steps, 0)
-        check_choice("loss", self.loss, PRETRAIN_LOSSES)
+        check_fields(self)
 
 
 def target_distribution(candidates: CandidateSet, parameters: np.ndarray) -> np.ndarray:

@@ -42,7 +42,7 @@ from hipref.sweep.cache import (
     store_cell,
 )
 from hipref.sweep.entries import check_writable
-from hipref.validation import check_field_types
+from hipref.validation import check_fields
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -254,7 +254,7 @@ def _run_dask(fn: CellFn, cells: dict[str, Any], scheduler: str, cache_dir: Cach
 def _check_sweep_input(fn: CellFn, cells: Sequence[Any], workers: Any) -> None:
     """Refuse, before any compute, a `workers` that is no whole number of at least 1, and an `fn` that
     workers cannot import by name (a lambda or a nested function, which would also share a cache key with
-    any other of its name), and a cell whose field holds a value of the wrong kind (`check_field_types`)."""
+    any other of its name), and a cell whose field does not meet its annotation (`check_fields`)."""
     if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
         raise ValueError(f"workers must be an integer at least 1 or None, got {workers!r}")
     name = getattr(fn, "__qualname__", None)
@@ -262,7 +262,7 @@ def _check_sweep_input(fn: CellFn, cells: Sequence[Any], workers: Any) -> None:
         raise ValueError(f"fn must be a module-level function (workers import it by name), got {fn!r}")
     for cell in cells:
         if dataclasses.is_dataclass(cell):
-            check_field_types(cell)
+            check_fields(cell, getattr(cell, "SEQUENCES", ()))
 
 
 def _shows_bars() -> bool:

@@ -6,12 +6,12 @@ import dataclasses
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.si_pretraining import PretrainData
 from hipref.learners.queries import QUERY_RULES
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Integer, OneOf, Range, check_fields, check_range
 
 TEACHERS: tuple[str, ...] = ("person", "scripted")
 """Who answers: a person at the widgets, or a scripted stand-in that presses the same buttons."""
@@ -25,7 +25,7 @@ class TeachConfig:
     """A session: preferences for a learner of SI (the Bayesian learner of notebook 12, or PESI, Algorithm
     2) in one environment, then one feedback episode of tabular COACH on the wiping grid (Eq. 1)."""
 
-    teacher: str = "scripted"
+    teacher: Annotated[str, OneOf(TEACHERS)] = "scripted"
     """'person' (answer with the mouse or the keys) or 'scripted' (a stand-in presses the buttons: how
     papermill and nbval run the notebook)."""
     domain: str = "wiping"
@@ -33,28 +33,28 @@ class TeachConfig:
     true_parameter: float = 0.7
     """The environment's unknown parameter (m or kg), inside the domain's range; hidden from the person
     unless `reveal_truth`."""
-    seed: int = 0
+    seed: Annotated[int, Integer(0)] = 0
     """Seed of the queries, the layouts, the sides the candidates are shown on and the stand-in."""
-    preference_queries: int = 6
+    preference_queries: Annotated[int, Integer(1)] = 6
     """Preference queries planned (the learner's learning episodes)."""
-    learner: str = "bayes"
+    learner: Annotated[str, OneOf(LEARNERS)] = "bayes"
     """Who is told the preferences, one of LEARNERS: 'bayes', the learner notebook 12 found to use every
     answer (told nothing of the teacher, it weighs every teacher model), or 'pesi' (Algorithm 2)."""
-    query_rule: str = "information_gain"
+    query_rule: Annotated[str, OneOf(QUERY_RULES)] = "information_gain"
     """How the next pair is chosen (`hipref.learners.queries`): 'information_gain' (the pair whose answer
     tells most), 'thompson', 'volume_removal', or 'uniform' (Algorithm 2's uniform draws)."""
-    feedback_steps: int = 6
+    feedback_steps: Annotated[int, Integer(1)] = 6
     """Length in high-level steps of the feedback episode (A.7 allows 290; a person's episode is short)."""
     desk_height: float = 0.7
     """Desk height in m of the feedback episode, known to its controller (R1 is about the high level)."""
-    frames: int = 20
+    frames: Annotated[int, Integer(2, 200)] = 20
     """Frames of a clip at `fps`: it lasts frames / fps seconds, sped up if the motion is longer (rendering
     is most of what preparing a query costs, so few)."""
-    fps: int = 10
+    fps: Annotated[int, Integer(1, 60)] = 10
     """Frames per second of the clips."""
     reveal_truth: bool = False
     """Show the true parameter and the estimate's error after each answer."""
-    scripted_noise: float = 0.2
+    scripted_noise: Annotated[float, Range(0.0, 1.0)] = 0.2
     """The stand-in's flip rate: the fraction of its preferences it answers wrongly (as the scripted
     teacher of section 5)."""
     session: str = ""
@@ -65,32 +65,23 @@ class TeachConfig:
     model, reused; A.7: 100)."""
     pretrain_steps: int = 500
     """Adam steps of Algorithm 4 (the full profile: 3000)."""
-    catch_every: int = 0
+    catch_every: Annotated[int, Integer(0)] = 0
     """Every `catch_every`-th preference query is a catch trial (0: none): the candidate nearest the truth
     against the end of the range farthest from it, which anyone watching can tell apart. Its answer is
     stored flagged `catch` and not told to the learner."""
     participant: str = ""
     """A participant's id (letters, digits, - and _): '' is the researcher's notebook; set, the notebook
     shows the participant's screens (`hipref.teach.participant`, served by `make teach`)."""
-    conditions: tuple[str, ...] = ()
+    conditions: tuple[Annotated[str, OneOf(QUERY_RULES)], ...] = ()
     """The participant's query rules, in the order they meet them (one session each); () is `query_rule`
     alone."""
 
     def __post_init__(self) -> None:
-        check_choice("teacher", self.teacher, TEACHERS)
+        check_fields(self)
         candidates = domain_spec(self.domain).candidates
         check_range("true_parameter", self.true_parameter, candidates.low, candidates.high)
-        check_int("seed", self.seed, 0)
-        check_int("preference_queries", self.preference_queries, 1)
-        check_choice("learner", self.learner, LEARNERS)
-        check_choice("query_rule", self.query_rule, QUERY_RULES)
-        check_int("feedback_steps", self.feedback_steps, 1)
         heights = domain_spec("wiping").candidates
         check_range("desk_height", self.desk_height, heights.low, heights.high)
-        check_int("frames", self.frames, 2, 200)
-        check_int("fps", self.fps, 1, 60)
-        check_range("scripted_noise", self.scripted_noise, 0.0, 1.0)
-        check_int("catch_every", self.catch_every, 0)
         if self.participant and not re.fullmatch(r"[A-Za-z0-9_-]{1,40}", self.participant):
             raise ValueError(
                 f"participant must be 1-40 letters, digits, - or _ (it names the session files), got "
@@ -101,10 +92,6 @@ class TeachConfig:
                 f"conditions {list(self.conditions)} are a participant's (one session each): set participant "
                 "to an id for participant mode, or leave conditions [] and choose the session's query_rule"
             )
-        for rule in self.conditions:
-            check_choice("conditions", rule, QUERY_RULES)
-        if len(set(self.conditions)) != len(self.conditions):
-            raise ValueError(f"conditions must not repeat a query rule, got {list(self.conditions)}")
         if self.session and (Path(self.session).name != self.session or not self.session.endswith(".jsonl")):
             raise ValueError(f"session must be a file name ending in .jsonl, got {self.session!r}")
         self.data  # noqa: B018 - validates n_trajectories and pretrain_steps

@@ -50,10 +50,11 @@ import enum
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
-from hipref.validation import check_choice, check_int, check_range
+from hipref.validation import Range, check_choice, check_fields, check_int
 
 
 class NoLabel(enum.Enum):
@@ -91,35 +92,30 @@ class TeacherModel:
     kind: str = "mistake"
     """One of TEACHER_KINDS: 'oracle', 'mistake' (the paper's uniform flip), 'stochastic', 'skip',
     'equal', 'myopic' or 'distance'."""
-    beta: float = 7.0
+    beta: Annotated[float, Range(0.0, math.inf)] = 7.0
     """'stochastic': the rationality beta of P(a) = sigmoid(beta (r_a - r_b)), per unit of r (a fraction of
     the range): a candidate 0.1 R nearer the truth is preferred with probability sigmoid(0.7) = 0.67."""
-    skip_distance: float = 0.3
+    skip_distance: Annotated[float, Range(0.0, 1.0)] = 0.3
     """'skip': no answer when every candidate is farther than this fraction of the range from the truth."""
-    equal_margin: float = 0.05
+    equal_margin: Annotated[float, Range(0.0, 1.0)] = 0.05
     """'equal': 'equally good' when the two nearest candidates' distances to the truth differ by less than
     this fraction of the range."""
-    memory: float = 0.9
+    memory: Annotated[float, Range(0.0, 1.0 - 1e-9)] = 0.9
     """'myopic': gamma, the weight of the remembered picture of the truth against the newest glimpse, in
     [0, 1) (B-Pref's discount: 0.9)."""
-    glimpse_noise: float = 1.3
+    glimpse_noise: Annotated[float, Range(0.0, math.inf)] = 1.3
     """'myopic': sigma, the standard deviation of one glimpse of the truth as a fraction of the range; with
     memory 0.9 the remembered picture's spread is sigma sqrt(0.1 / 1.9) = 0.30 of the range."""
-    confusion_max: float = 0.5
+    confusion_max: Annotated[float, Range(0.0, 1.0)] = 0.5
     """'distance': the probability of a wrong answer for a pair equally near the truth, in [0, 1]."""
-    confusion_width: float = 0.21
+    confusion_width: Annotated[float, Range(1e-9, math.inf)] = 0.21
     """'distance': the difference of closeness (a fraction of the range) over which the probability of a
     wrong answer falls by a factor e."""
 
     def __post_init__(self) -> None:
+        check_fields(self)
+        # TEACHER_KINDS is read from the rules below, which take this class: no annotation can name it.
         check_choice("kind", self.kind, TEACHER_KINDS)
-        check_range("beta", self.beta, 0.0, math.inf)
-        check_range("skip_distance", self.skip_distance, 0.0, 1.0)
-        check_range("equal_margin", self.equal_margin, 0.0, 1.0)
-        check_range("memory", self.memory, 0.0, 1.0 - 1e-9)
-        check_range("glimpse_noise", self.glimpse_noise, 0.0, math.inf)
-        check_range("confusion_max", self.confusion_max, 0.0, 1.0)
-        check_range("confusion_width", self.confusion_width, 1e-9, math.inf)
 
     @property
     def name(self) -> str:
