@@ -178,6 +178,23 @@ def test_bad_configs_are_refused_before_any_compute(make, monkeypatch):
         make()
 
 
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        # Evaluated every 40 of 66 episodes, the last 26 would be learnt by no evaluated learner.
+        (lambda: R2Config(episodes=66, eval_every=40), r"episodes must be a multiple of eval_every=40"),
+        (lambda: SIRun("wiping", "pesi", 0.7, episodes=66, eval_every=40), "multiple of eval_every=40"),
+        (lambda: R2Config(pretrain_loss="mse"), r"pretrain_loss must be one of \['brier'"),
+        (lambda: R2Config(learning_rate=True), r"learning_rate must be a finite number in \[1e-08, 1.0\]"),
+    ],
+)
+def test_a_refusal_names_the_studys_own_parameter(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+    # Explicit checkpoints need not fall on multiples.
+    assert SIRun("wiping", "pesi", 0.7, episodes=66, checkpoints=(0, 40, 66)).evaluated_at == (0, 40, 66)
+
+
 def test_the_protocol_crosses_a_fixed_grid_of_truths_with_seeds_and_osi_ignores_the_fine_tuning():
     protocol = SIStudy(heights=(0.6, 0.8), masses=(10.0,), seeds=2)
     assert protocol.environments("wiping") == [(0.6, 0), (0.6, 1), (0.8, 0), (0.8, 1)]

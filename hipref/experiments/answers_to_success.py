@@ -152,7 +152,7 @@ class AnswersConfig(SIStudy):
     """True cube masses in kg of the pushing environments, each in [8, 20]."""
     episodes: Annotated[int, Integer(1)] = 66
     """Answers per run, at least 1."""
-    eval_every: int = 1
+    eval_every: Annotated[int, Integer(1)] = 1
     """Not used: the task part evaluates after `checkpoints` (1 passes the base's check for any episodes)."""
     checkpoints: tuple[int, ...] = (0, 5, 10, 20, 33, 66)
     """Answers after which the task part evaluates (increasing, from 0 to at most `episodes`); its runs end

@@ -37,11 +37,12 @@ from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.experiments.si_run import SIRun, run_si
 from hipref.learners.imitation import ImitationConfig, phi_response
+from hipref.learners.sysid import PRETRAIN_LOSSES
 from hipref.numerics import one_thread
 from hipref.results import tidy_rows
 from hipref.seeds import child_seeds
 from hipref.sweep import run_sweep
-from hipref.validation import Integer, NonEmptyTuple, Range, check_int, check_range
+from hipref.validation import Integer, NonEmptyTuple, OneOf, Range, check_int, check_range
 
 SI_METHODS: tuple[str, ...] = ("osi", "pesi")
 """The SI methods run on top of each low level."""
@@ -82,7 +83,7 @@ class LearnedControllerConfig(SIStudy):
     """True cube masses in kg of the SI environments, each in [8, 20]."""
     episodes: Annotated[int, Integer(1)] = 20
     """Learning episodes per SI run, at least 1."""
-    eval_every: int = 20
+    eval_every: Annotated[int, Integer(1)] = 20
     """Learning episodes between SI evaluations (section 5: 33)."""
     eval_episodes: Annotated[int, Integer(1)] = 3
     """Evaluation episodes per SI evaluation (section 5: 10)."""
@@ -90,7 +91,7 @@ class LearnedControllerConfig(SIStudy):
     """Algorithm 4 trajectories, collected with each low level (A.7: 100)."""
     pretrain_steps: int = 300
     """Adam steps of Algorithm 4."""
-    pretrain_loss: str = "brier"
+    pretrain_loss: Annotated[str, OneOf(PRETRAIN_LOSSES)] = "brier"
     """Algorithm 4's loss: A.7's squared loss over SI's distribution, for every low level (the study's 3000
     trajectories with the negative log-likelihood would cost a collection per learned low level)."""
     iterations: int = 30

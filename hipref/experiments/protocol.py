@@ -11,10 +11,11 @@ from typing import Annotated, Any, ClassVar
 from hipref.experiments.domains import DOMAINS, domain_spec, truth_grids
 from hipref.experiments.si_methods import COTEACHING_METHODS, LEARNING_METHODS
 from hipref.experiments.si_pretraining import PretrainCell, PretrainData, pretrain_models
-from hipref.experiments.si_run import FineTuning, SIRun
-from hipref.learners.pesi import PESIConfig
+from hipref.experiments.si_run import FineTuning, SIRun, check_evaluations
+from hipref.learners.pesi import LEARNING_RATE, PESIConfig
+from hipref.learners.sysid import PRETRAIN_LOSSES
 from hipref.sweep import CacheDir
-from hipref.validation import Integer, check_fields, check_int, check_range
+from hipref.validation import Integer, OneOf, check_fields, check_range
 
 
 @dataclass(frozen=True)
@@ -36,8 +37,8 @@ class SIStudy:
     """Seeds per true parameter; truths x seeds is the repetitions of the paper (A.7: 15)."""
     episodes: Annotated[int, Integer(1)] = SIRun.episodes
     """Learning episodes per run, at least 1 (`SIRun.episodes`)."""
-    eval_every: int = SIRun.eval_every
-    """Learning episodes between evaluations (section 5: 33, `SIRun.eval_every`)."""
+    eval_every: Annotated[int, Integer(1)] = SIRun.eval_every
+    """Learning episodes between evaluations (section 5: 33, `SIRun.eval_every`), dividing `episodes`."""
     eval_episodes: Annotated[int, Integer(1)] = SIRun.eval_episodes
     """Evaluation episodes per evaluation (section 5: 10, `SIRun.eval_episodes`)."""
     eval_slices: Annotated[int, Integer(1)] = SIRun.eval_slices
@@ -46,10 +47,10 @@ class SIStudy:
     """Algorithm 4 trajectories (the full profile: 3000, the study's; A.7's 100 starve SI, notebook 13)."""
     pretrain_steps: int = 500
     """Adam steps of Algorithm 4 (the full profile: 3000)."""
-    pretrain_loss: str = "nll"
+    pretrain_loss: Annotated[str, OneOf(PRETRAIN_LOSSES)] = "nll"
     """Algorithm 4's loss: 'nll' (the study's), or A.7's mean squared loss 'brier', 'expectation' or
     'brier_expectation' (see `PretrainData.loss`)."""
-    learning_rate: float = PESIConfig.learning_rate
+    learning_rate: Annotated[float, LEARNING_RATE] = PESIConfig.learning_rate
     """Gradient step size of SI fine-tuning (A.7: 0.01, `PESIConfig.learning_rate`)."""
 
     def __post_init__(self) -> None:
@@ -63,9 +64,8 @@ class SIStudy:
                 )
             for value in values:
                 check_range(name, value, candidates.low, candidates.high)
-        check_int("eval_every", self.eval_every, 1, self.episodes)
-        PESIConfig(learning_rate=self.learning_rate)
-        self.data  # noqa: B018 - validates n_trajectories, pretrain_steps and pretrain_loss
+        check_evaluations(self.episodes, self.eval_every)
+        self.data  # noqa: B018 - validates n_trajectories and pretrain_steps
 
     @property
     def data(self) -> PretrainData:

@@ -90,7 +90,7 @@ class RobustnessConfig(SIStudy):
     learning clips and evaluation episodes are reused)."""
     masses: tuple[float, ...] = (11.0,)
     """True cube masses in kg of the pushing environments, each in [8, 20]."""
-    eval_every: int = 66
+    eval_every: Annotated[int, Integer(1)] = 66
     """Learning episodes between evaluations (section 5: 33). By default equal to `episodes`: one evaluation
     before learning and one at the end, the only one the verdicts use."""
     eval_episodes: Annotated[int, Integer(1)] = 5

@@ -76,6 +76,17 @@ class FineTuning:
                 raise ValueError(f"pesi.{name} is set by the run, got {getattr(self.pesi, name)!r}")
 
 
+def check_evaluations(episodes: int, eval_every: int) -> None:
+    """Raise ValueError unless evaluations every `eval_every` learning episodes end on the last one: the
+    episodes after the last evaluation would be learnt by no learner that is evaluated."""
+    check_int("eval_every", eval_every, 1, episodes)
+    if episodes % eval_every:
+        raise ValueError(
+            f"episodes must be a multiple of eval_every={eval_every} (the last evaluation is after the last "
+            f"episode), got {episodes}"
+        )
+
+
 @dataclass(frozen=True)
 class SIRun:
     """One run (one sweep cell): a method fine-tuning SI in one environment with a fixed true parameter."""
@@ -133,7 +144,7 @@ class SIRun:
         if self.teacher.kind == "distance" and self.n_candidates != 2:
             raise ValueError(f"n_candidates must be 2 for the 'distance' teacher, got {self.n_candidates}")
         if not self.checkpoints:
-            check_int("eval_every", self.eval_every, 1, self.episodes)
+            check_evaluations(self.episodes, self.eval_every)
         if self.told != "nothing" and self.method not in BAYES_METHODS:
             raise ValueError(f"told is for the 'bayes' method, got method {self.method!r}")
         if self.method in BAYES_METHODS and self.fine_tuning.pesi.candidate_sampling == "belief":

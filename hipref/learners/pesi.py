@@ -44,6 +44,10 @@ FINE_TUNED: tuple[str, ...] = ("all", "last_layer", "output_bias")
 """Which of SI's parameters preferences fine-tune: every layer, the output layer, or its bias alone."""
 
 
+LEARNING_RATE = Range(1e-8, 1.0)
+"""The step sizes of SI fine-tuning a config accepts (`PESIConfig.learning_rate` and the studies')."""
+
+
 @dataclass(frozen=True)
 class PESIConfig:
     """Algorithm 2: preference fine-tuning of SI."""
@@ -56,7 +60,7 @@ class PESIConfig:
     uses 0.1)."""
     encourage_percentage: Annotated[float, Range(0.0, 1.0)] = 0.25
     """p of Eq. 2, how far one preference moves the target toward the preferred candidate (A.7: 0.25)."""
-    learning_rate: Annotated[float, Range(1e-8, 1.0)] = 1e-2
+    learning_rate: Annotated[float, LEARNING_RATE] = 1e-2
     """Step size of SI fine-tuning (A.7: 'the finetuning process is conducted for learning rate of 0.01';
     Table 2's 1e-3 is Algorithm 4's pretraining rate)."""
     batch_size: Annotated[int, Integer(1)] = 16
