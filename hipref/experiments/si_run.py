@@ -108,7 +108,7 @@ class SIRun:
     """Learning episodes (preferences asked), at least 1: two evaluation periods of 33 by default, the quick
     profile's (the full profile: 330 in notebooks 02-04, 198 in 06 and 07, 99 in 08, 10 and 11)."""
     eval_every: int = 33
-    """Learning episodes between evaluations (section 5: 33)."""
+    """Learning episodes between evaluations (section 5: 33), dividing `episodes` (without `checkpoints`)."""
     eval_episodes: Annotated[int, Integer(1)] = 10
     """Evaluation episodes per evaluation (section 5: 10)."""
     eval_slices: Annotated[int, Integer(1)] = 3
