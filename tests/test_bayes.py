@@ -57,6 +57,27 @@ def test_the_posterior_is_the_normalised_product_of_the_answers_likelihoods() ->
     np.testing.assert_allclose(posterior.joint(), brute / brute.sum(), rtol=1e-10)
 
 
+@pytest.mark.parametrize("kind", ["skip", "equal"])
+def test_a_truth_on_a_rules_boundary_allows_the_teachers_answer(kind: str) -> None:
+    # Truths on Phi, every pair of Phi: distances land exactly on skip_distance or equal_margin, where the
+    # teacher's rounding and the posterior cell's differ; the model must allow whatever the teacher says.
+    teacher_model = TeacherModel(kind)
+    model = told(teacher_model, 0.0)
+    cells = PreferencePosterior(GRID, (model,)).cells
+    values = GRID.values
+    pairs = np.stack(np.triu_indices(values.size, k=1), axis=1)
+    on_boundary = 0
+    for truth in np.round(values, 10):
+        cell = cells[np.abs(cells - truth).argmin()]
+        probs = model.probabilities((values[pairs] - cell) / (GRID.high - GRID.low))
+        teacher = ScriptedPreferenceTeacher(truth, 0.0, np.random.default_rng(0), teacher_model, scale=0.4)
+        for pair, row in zip(pairs, probs, strict=True):
+            query = PreferenceQuery(tuple(float(v) for v in values[pair]), features=np.zeros(0))
+            assert row[answer_column(teacher.answer(query), 2)] > 0, (truth, values[pair])
+        on_boundary += int(np.sum(probs[:, 2:] == 0.5))
+    assert on_boundary > 100  # the boundaries are met, not avoided
+
+
 def test_with_no_flips_the_support_is_exactly_what_the_answers_allow() -> None:
     posterior = PreferencePosterior(GRID, (AnswerModel("flip", flip=0.0),))
     truth = 0.6731

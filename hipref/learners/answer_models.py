@@ -17,7 +17,9 @@ preferred (i < N), 'skip' (column N) or 'equally good' (column N + 1). They mirr
 - 'distance': the nearest, wrong with probability confusion_max exp(-|d_a - d_b| / confusion_width) (pairs).
 
 Every model but 'flip' takes the uniform flip e on top of its rule, as the scripted teacher applies it last;
-'skip' and 'equally good' are never flipped. Ties (a truth exactly at a midpoint) split evenly.
+'skip' and 'equally good' are never flipped. Ties (a truth exactly at a midpoint, or on the boundary of
+a rule: at exactly `skip_distance`, a margin of exactly `equal_margin`) split evenly, as the teacher's own
+rounding decides them.
 """
 
 from __future__ import annotations
@@ -110,17 +112,24 @@ def _stochastic(
     return weights / weights.sum(axis=-1, keepdims=True)
 
 
+def _exceeds(values: np.ndarray, bound: float) -> np.ndarray:
+    """1 where values > bound, 0 where below, 1/2 where equal up to rounding (`nearest_probabilities`'s
+    tolerance): a rule's boundary, where the teacher's arithmetic decides."""
+    on_bound = np.abs(values - bound) <= 1e-12 + 1e-9 * bound
+    return np.where(on_bound, 0.5, (values > bound).astype(np.float64))
+
+
 def _skip(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
-    skipped = distances.min(axis=-1) > model.skip_distance
+    skipped = _exceeds(distances.min(axis=-1), model.skip_distance)
     out[..., SKIP_COLUMN] = skipped
-    return nearest_probabilities(distances) * ~skipped[..., None]
+    return nearest_probabilities(distances) * (1.0 - skipped[..., None])
 
 
 def _equal(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
     two = np.sort(distances, axis=-1)[..., :2]
-    equal = two[..., 1] - two[..., 0] < model.equal_margin
+    equal = 1.0 - _exceeds(two[..., 1] - two[..., 0], model.equal_margin)  # equal: margin < equal_margin
     out[..., EQUAL_COLUMN] = equal
-    return nearest_probabilities(distances) * ~equal[..., None]
+    return nearest_probabilities(distances) * (1.0 - equal[..., None])
 
 
 def _myopic(model: AnswerModel, offsets: np.ndarray, distances: np.ndarray, out: np.ndarray) -> np.ndarray:
