@@ -8,7 +8,13 @@ import pytest
 import torch
 
 from hipref.learners.answer_models import ANSWER_KINDS, AnswerModel, model_family, told
-from hipref.learners.bayes import BayesConfig, BayesLearner, PreferencePosterior, answer_column
+from hipref.learners.bayes import (
+    BayesConfig,
+    BayesLearner,
+    PreferencePosterior,
+    answer_column,
+    most_expected,
+)
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.queries import choose_pair, pair_scores
 from hipref.learners.sysid import CandidateSet, SIModel
@@ -211,27 +217,34 @@ def test_marginal_likelihood_prefers_the_teacher_that_answered() -> None:
     assert max(kinds, key=kinds.__getitem__) == "skip"
 
 
-def test_the_estimate_is_read_from_the_most_probable_kind_of_teacher() -> None:
-    # Two kinds: a flip at 20 % (two rates) and the distance teacher; answers a flip explains better.
+def test_the_estimate_is_the_value_most_probably_within_one_step_of_the_truth() -> None:
+    # 0.4 of the mass on one point, 0.6 spread thinly above: the median lies in the thin part, where no
+    # value is within a step of much mass; the default estimate takes the heavy point.
+    cells = PreferencePosterior(GRID, (AnswerModel(),)).cells
+    weights = np.where(cells >= 0.7 - 1e-9, 1.0, 0.0)
+    weights *= 0.6 / weights.sum()
+    weights[np.abs(cells - 0.55).argmin()] = 0.4
+    step = GRID.resolution
+    box = (np.array([-step, step]) * (1 + 1e-9), np.ones(2))
+    assert most_expected(cells, weights, box) == pytest.approx(0.55)
+    median = cells[np.searchsorted(np.cumsum(weights), 0.5)]
+    assert median > 0.7
+    # A flat posterior over [0.60, 0.70] (answers of a teacher that never errs): its centre.
+    learner = BayesLearner(GRID, BayesConfig(answer_models=(AnswerModel(),)), seed=0)
+    learner.tell(PreferenceQuery((0.5, 0.7), features=np.zeros(0)), -1)  # truth above 0.60
+    learner.tell(PreferenceQuery((0.6, 0.8), features=np.zeros(0)), 1)  # truth below 0.70
+    assert learner.config.estimate == "within_step"
+    assert learner.estimate() == pytest.approx(0.65)
+
+
+def test_the_estimate_is_read_from_every_answer_model_averaged() -> None:
     models = (AnswerModel("flip", flip=0.1), AnswerModel("flip", flip=0.3), AnswerModel("distance"))
-    posterior = PreferencePosterior(SMALL, models)
-    for pair, column in [
-        ((0.0, 1.0), 0),
-        ((0.25, 0.5), 0),
-        ((0.0, 0.25), 1),
-        ((0.0, 0.5), 0),
-        ((0.5, 0.75), 1),
-    ]:
-        posterior.update(pair, column)
-    joint = posterior.joint()
-    kinds = posterior.model_posterior()
-    best = max(kinds, key=kinds.__getitem__)
-    rows = [i for i, m in enumerate(models) if m.kind == best]
-    np.testing.assert_allclose(posterior.kind_phi(), joint[rows].sum(axis=0) / joint[rows].sum())
-    assert not np.allclose(posterior.kind_phi(), posterior.phi())  # not the average over every kind
-    told_one_kind = PreferencePosterior(SMALL, models[:2])
-    told_one_kind.update((0.0, 1.0), 0)
-    np.testing.assert_allclose(told_one_kind.kind_phi(), told_one_kind.phi())
+    learner = BayesLearner(SMALL, BayesConfig(answer_models=models), seed=0)
+    for pair, label in [((0.0, 1.0), 1), ((0.25, 0.5), 1), ((0.0, 0.25), -1), ((0.5, 0.75), -1)]:
+        learner.tell(PreferenceQuery(pair, features=np.zeros(0)), label)
+    joint = learner.posterior.joint()
+    np.testing.assert_allclose(learner.distribution(), joint.sum(axis=0))
+    assert joint.sum(axis=1).min() > 0.01  # every model weighs in
 
 
 def test_the_filter_flags_the_flipped_answers() -> None:
@@ -285,6 +298,8 @@ def test_pesi_asks_distinct_candidates_of_phi_under_every_chosen_rule(rule: str)
         (lambda: AnswerModel("guess"), "kind"),
         (lambda: BayesLearner(GRID, BayesConfig(estimate="expected_success")), "success_curve"),
         (lambda: BayesLearner(GRID, BayesConfig(prior="si")), "si_model"),
+        (lambda: BayesLearner(GRID).estimate(reading="mode"), "reading"),
+        (lambda: BayesLearner(GRID).estimate(reading="expected_success"), "success_curve"),
         (lambda: PESIConfig(candidate_sampling="thompson", n_candidates=3), "n_candidates must be 2"),
     ],
 )

@@ -4,7 +4,7 @@ Two parts, on one fixed grid of environments (truth, seed) per domain, every lea
 answered by the same teacher stream:
 
 - **The answers** (no physics, `run_answers`): the Bayesian learner (`hipref.learners.bayes`) asks a
-  scripted teacher and is told; its error |median - phi*| after every number of answers, per teacher model
+  scripted teacher and is told; its error |estimate - phi*| after every number of answers, per teacher model
   and flip rate, query rule, and answer model told or chosen by marginal likelihood. Against it the Shannon
   floor: to single out one of K candidates from answers each wrong with probability e takes at least
   log2(K) / (1 - h(e)) answers, h the binary entropy (`hipref.experiments.answers_tables`).
@@ -98,8 +98,9 @@ class AnswersCell:
 
 
 def run_answers(cell: AnswersCell) -> pd.DataFrame:
-    """The learner's error after each of `answer_counts` (a sweep cell), and at the end the posterior's
-    filter of wrong answers against the teacher's record and the probability it gives the true kind."""
+    """The learner's error after each of `answer_counts` (a sweep cell; under a chosen query rule also the
+    error of the same posterior's median, 'median_error'), and at the end the posterior's filter of wrong
+    answers against the teacher's record and the probability it gives the true kind."""
     phi = domain_spec(cell.domain).candidates
     teacher_seq, learner_seq, _, _ = run_streams(cell.seed, cell.ground_truth)
     model = TeacherModel(cell.teacher)
@@ -118,6 +119,9 @@ def run_answers(cell: AnswersCell) -> pd.DataFrame:
             learner.tell(query, teacher.answer(query))
             if answered in counts:
                 rows.append((answered, "param_error", abs(learner.estimate() - cell.ground_truth)))
+                if cell.query_rule != "uniform":  # the same posterior read by its median: the reading's cost
+                    median = learner.estimate(reading="median")
+                    rows.append((answered, "median_error", abs(median - cell.ground_truth)))
     precision, recall = learner.filter_precision_recall(teacher.wrong_labels)
     kind = told(model, 0.0).kind
     final = {

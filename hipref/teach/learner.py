@@ -79,6 +79,6 @@ def evaluation_slices(config: TeachConfig, task: Task) -> np.ndarray:
 
 
 def running_estimate(learner: Learner, evaluation: np.ndarray) -> float:
-    """What the session's learner would give the controller: the Bayesian learner's posterior median, or
-    PESI's SI read on the session's probing slices."""
+    """What the session's learner would give the controller: the Bayesian learner's estimate, or PESI's
+    SI read on the session's probing slices."""
     return learner.running_estimate(evaluation)

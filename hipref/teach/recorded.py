@@ -141,7 +141,7 @@ def summary(session: SessionFile, config: TeachConfig) -> dict[str, float]:
 def estimates(config: TeachConfig, records: Sequence[dict[str, Any]]) -> dict[str, float]:
     """Each learner's estimate of the parameter from the session's preference `records`: 'osi' (the
     pretrained SI, told nothing) and every `REPLAYED` learner, read as the session reads its own
-    (`running_estimate`: the Bayesian learner's posterior median, SI's mean on the probing slices)."""
+    (`running_estimate`: the Bayesian learner's estimate, SI's mean on the probing slices)."""
     evaluation = evaluation_slices(config, domain_spec(config.domain).make_task())
     osi = pretrained_model(config.domain, config.data)
     result = {"osi": float(osi.predict(evaluation).mean())}
