@@ -34,6 +34,7 @@ METRICS: tuple[str, ...] = (
     "param_error",
     "param_error_argmax",
     "param_error_multislice",
+    "median_error",
     "success_rate",
     "cells_wiped",
     "force_mean",
