@@ -14,6 +14,7 @@ from hipref.learners.bayes import (
     PreferencePosterior,
     answer_column,
     most_expected,
+    most_within,
 )
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.queries import choose_pair, pair_scores
@@ -224,9 +225,7 @@ def test_the_estimate_is_the_value_most_probably_within_one_step_of_the_truth() 
     weights = np.where(cells >= 0.7 - 1e-9, 1.0, 0.0)
     weights *= 0.6 / weights.sum()
     weights[np.abs(cells - 0.55).argmin()] = 0.4
-    step = GRID.resolution
-    box = (np.array([-step, step]) * (1 + 1e-9), np.ones(2))
-    assert most_expected(cells, weights, box) == pytest.approx(0.55)
+    assert most_within(cells, weights, GRID.resolution) == pytest.approx(0.55)
     median = cells[np.searchsorted(np.cumsum(weights), 0.5)]
     assert median > 0.7
     # A flat posterior over [0.60, 0.70] (answers of a teacher that never errs): its centre.
@@ -235,6 +234,16 @@ def test_the_estimate_is_the_value_most_probably_within_one_step_of_the_truth() 
     learner.tell(PreferenceQuery((0.6, 0.8), features=np.zeros(0)), 1)  # truth below 0.70
     assert learner.config.estimate == "within_step"
     assert learner.estimate() == pytest.approx(0.65)
+
+
+def test_the_most_mass_within_a_step_is_the_expected_success_of_a_box() -> None:
+    cells = PreferencePosterior(GRID, (AnswerModel(),)).cells
+    step = GRID.resolution
+    box = (np.array([-step, step]) * (1 + 1e-9), np.ones(2))
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        weights = rng.dirichlet(np.full(cells.size, 0.05))
+        assert most_within(cells, weights, step) == most_expected(cells, weights, box)
 
 
 def test_the_estimate_is_read_from_every_answer_model_averaged() -> None:

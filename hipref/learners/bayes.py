@@ -237,7 +237,21 @@ def most_expected(cells: np.ndarray, weights: np.ndarray, success: SuccessCurve)
     beyond it; of several equally good, the middle one (a flat posterior is estimated by its centre)."""
     errors, rates = success
     expected = np.interp(cells[:, None] - cells[None, :], errors, rates, left=0.0, right=0.0) @ weights
-    best = np.flatnonzero(expected >= expected.max() * (1 - 1e-9))
+    return _middle_best(cells, expected)
+
+
+def most_within(cells: np.ndarray, weights: np.ndarray, step: float) -> float:
+    """The cell x with the most mass within `step` of it (`most_expected` with S one on [-step, step]), by
+    cumulative sums; of several equally good, the middle one."""
+    step = step * (1 + 1e-9)  # cells a step apart by rounding count as within it
+    cumulative = np.concatenate([[0.0], np.cumsum(weights)])
+    low = np.searchsorted(cells, cells - step, side="left")
+    high = np.searchsorted(cells, cells + step, side="right")
+    return _middle_best(cells, cumulative[high] - cumulative[low])
+
+
+def _middle_best(cells: np.ndarray, scores: np.ndarray) -> float:
+    best = np.flatnonzero(scores >= scores.max() * (1 - 1e-9))
     return float(cells[best[best.size // 2]])
 
 
@@ -371,8 +385,7 @@ class BayesLearner:
         if reading == "mean":
             return float(weights @ cells)
         if reading == "within_step":
-            step = self.candidates.resolution * (1 + 1e-9)
-            return most_expected(cells, weights, (np.array([-step, step]), np.ones(2)))
+            return most_within(cells, weights, self.candidates.resolution)
         assert self._success is not None
         return most_expected(cells, weights, self._success)
 
