@@ -8,14 +8,8 @@ import pytest
 import torch
 
 from hipref.learners.answer_models import ANSWER_KINDS, AnswerModel, model_family, told
-from hipref.learners.bayes import (
-    BayesConfig,
-    BayesLearner,
-    PreferencePosterior,
-    answer_column,
-    most_expected,
-    most_within,
-)
+from hipref.learners.bayes import BayesConfig, BayesLearner, PreferencePosterior, answer_column
+from hipref.learners.estimates import most_expected, most_within
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.queries import choose_pair, pair_scores
 from hipref.learners.sysid import CandidateSet, SIModel

@@ -7,19 +7,7 @@ PESI moves SI's distribution a little per answer (Eq. 2). What the answers allow
 over the truth phi and the teacher's answer model m (`hipref.learners.answer_models`): told the model, m is
 fixed; otherwise every model of `model_family()` is weighed by its marginal likelihood. Queries are
 scored on the heaviest models of the posterior (`PreferencePosterior.query_beliefs`), and the estimate is
-read from the whole posterior (Bayesian model averaging).
-
-The posterior's median is a poor estimate when the models disagree: the kinds that explain the same
-answers differently (a graded model reading a flip as a truth near the pair's midpoint) place phi
-differently, and the median of their blend can lie where none of them puts much mass. The default
-estimate is instead the value with the most posterior mass within one step of Phi around it: the Bayes
-decision for notebook 12's criterion, an estimate within one step of the truth. On two grids of 40
-environments (8 truths x 5 seeds per domain, none of notebook 12's; information gain, 200 answers), the
-learner told nothing needed more than 1.25 times the answers of the learner told the model under 13 of
-24 settings (per grid, the 12 of notebook 12's claim but the myopic teacher's, where neither gets within
-one step) with the median of the most probable kind, and under 7 with this estimate. Scoring queries on
-every model rather than the heaviest six left 3 of 12 over on one grid, as this estimate alone did, at
-twice the time.
+read from the whole posterior (Bayesian model averaging) by `hipref.learners.estimates`.
 
 phi lives on a fine grid of points over
 the range, `refine` per step of Phi, every midpoint of two candidates among them: with the flip model the
@@ -27,10 +15,7 @@ posterior is then exact on the intervals between pair midpoints and on the midpo
 teacher breaks ties at random, as for a truth on the grid of Phi).
 
 The prior is uniform, or ('si') SI's Pr(phi | tau) on the slice the estimate is for: the answers' posterior
-times SI's output on each evaluation slice, so what OSI knows is kept. The estimate the controller gets is
-the value most probably within one step of the truth ('within_step'), the posterior's median or mean, or
-('expected_success') the value maximising the expected success under a measured success-against-error
-curve (notebook 05).
+times SI's output on each evaluation slice, so what OSI knows is kept.
 
 The learner asks with a query rule (`hipref.learners.queries`); under 'uniform' it draws exactly what
 PESILearner draws from the same seed, so the two are paired on the same queries and answers.
@@ -48,18 +33,14 @@ import torch
 from scipy.special import logsumexp
 
 from hipref.learners.answer_models import EQUAL_COLUMN, SKIP_COLUMN, AnswerModel, model_family, with_flip
+from hipref.learners.estimates import ESTIMATES, SuccessCurve, read_estimate
 from hipref.learners.queries import QUERY_RULES, choose_pair, pair_table
 from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.teachers.preference import EQUAL, NoLabel, PreferenceQuery, preference_label_vector
-from hipref.validation import Integer, OneOf, check_choice, check_fields, check_int
+from hipref.validation import Integer, OneOf, check_fields, check_int
 
 PRIORS: tuple[str, ...] = ("uniform", "si")
 """The prior over phi: uniform over the range, or SI's Pr(phi | tau) on the slice estimated for."""
-
-ESTIMATES: tuple[str, ...] = ("within_step", "median", "mean", "expected_success")
-"""What the controller is given, from Pr(phi | answers) (module docstring): the value with the most mass
-within one step of Phi around it (the estimate most probably within one step of the truth), the median (of
-least expected absolute error), the mean, or the value of highest expected success."""
 
 
 def answer_column(label: int | np.ndarray | NoLabel, n_candidates: int) -> int:
@@ -228,33 +209,6 @@ class BayesConfig:
             raise ValueError(f"answer_models must be AnswerModels or None, got {self.answer_models!r}")
 
 
-SuccessCurve = tuple[np.ndarray, np.ndarray]
-"""(signed estimate errors, success rates) measured at them, errors increasing (notebook 05)."""
-
-
-def most_expected(cells: np.ndarray, weights: np.ndarray, success: SuccessCurve) -> float:
-    """The cell x maximising the expected success sum_c Pr(c) S(x - c), S the curve interpolated and zero
-    beyond it; of several equally good, the middle one (a flat posterior is estimated by its centre)."""
-    errors, rates = success
-    expected = np.interp(cells[:, None] - cells[None, :], errors, rates, left=0.0, right=0.0) @ weights
-    return _middle_best(cells, expected)
-
-
-def most_within(cells: np.ndarray, weights: np.ndarray, step: float) -> float:
-    """The cell x with the most mass within `step` of it (`most_expected` with S one on [-step, step]), by
-    cumulative sums; of several equally good, the middle one."""
-    step = step * (1 + 1e-9)  # cells a step apart by rounding count as within it
-    cumulative = np.concatenate([[0.0], np.cumsum(weights)])
-    low = np.searchsorted(cells, cells - step, side="left")
-    high = np.searchsorted(cells, cells + step, side="right")
-    return _middle_best(cells, cumulative[high] - cumulative[low])
-
-
-def _middle_best(cells: np.ndarray, scores: np.ndarray) -> float:
-    best = np.flatnonzero(scores >= scores.max() * (1 - 1e-9))
-    return float(cells[best[best.size // 2]])
-
-
 class BayesLearner:
     """The posterior through ask/tell, beside PESILearner: ask a query, be told the answer, estimate phi.
 
@@ -375,19 +329,10 @@ class BayesLearner:
         """The value the controller is given (config `estimate`), or another `reading` of the same posterior
         (one of ESTIMATES)."""
         reading = self.config.estimate if reading is None else reading
-        check_choice("reading", reading, ESTIMATES)
-        if reading == "expected_success" and self._success is None:
-            raise ValueError("estimate 'expected_success' needs a success_curve (errors, success rates)")
         weights = self.distribution(features)
-        cells = self.posterior.cells
-        if reading == "median":
-            return float(cells[min(int(np.searchsorted(np.cumsum(weights), 0.5)), cells.size - 1)])
-        if reading == "mean":
-            return float(weights @ cells)
-        if reading == "within_step":
-            return most_within(cells, weights, self.candidates.resolution)
-        assert self._success is not None
-        return most_expected(cells, weights, self._success)
+        return read_estimate(
+            reading, self.posterior.cells, weights, self.candidates.resolution, self._success
+        )
 
     def estimates(self, slices: np.ndarray) -> np.ndarray:
         """The estimate on each of (slices, input_dim) slices (the same for each under prior 'uniform')."""
