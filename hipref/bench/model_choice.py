@@ -3,12 +3,14 @@
 `python -m hipref.bench.model_choice --grid heldout` runs the learner under information gain, told the
 teacher's model and told nothing (every answer model weighed by its marginal likelihood), under every teacher
 of notebook 12's claim (the paper's at 0 and 20 % flips, and notebook 11's others without flips), on notebook
-12's full-profile environments ('study': its five truths x seeds 0-1) or on held-out ones ('heldout': truths
-it does not use x seeds 100-104). It prints `told_against_chosen` (answers to one step of Phi in 90 % of the
-environments, or final errors where the told learner never gets there), the myopic teacher's floor (the
-error of the best estimate from its remembered pictures themselves, `picture_floor`, against which no
-learner of its answers can be within one step in 90 % of environments) and the mean wall time of one run
-of each. Nothing is written to disk.
+12's full-profile environments ('study': its five truths x seeds 0-1), on held-out ones ('heldout': truths it
+does not use x seeds 100-104) or on two wider held-out grids of 40 environments per domain ('wide' and
+'wide2': 8 truths across the range x seeds 700-704 and 800-804, where the estimate's readings were compared,
+`hipref.learners.estimates`; `--episodes 200`). It prints `told_against_chosen` (answers to one step of Phi in
+90 % of the environments, or final errors where the told learner never gets there), the myopic teacher's floor
+(the error of the best estimate from its remembered pictures themselves, `picture_floor`, against which no
+learner of its answers can be within one step in 90 % of environments) and the mean wall time of one run of
+each. Nothing is written to disk.
 """
 
 from __future__ import annotations
@@ -40,9 +42,19 @@ HELDOUT: dict[str, tuple[float, ...]] = {
     "wiping": (0.58, 0.66, 0.74, 0.82),
     "pushing": (10.0, 13.0, 15.0, 17.5),
 }
+WIDE: dict[str, tuple[float, ...]] = {
+    "wiping": (0.525, 0.575, 0.625, 0.675, 0.725, 0.775, 0.825, 0.875),
+    "pushing": (8.4, 10.0, 11.6, 13.2, 14.8, 16.4, 18.0, 19.6),
+}
+WIDE2: dict[str, tuple[float, ...]] = {
+    "wiping": (0.51, 0.5643, 0.6186, 0.6729, 0.7271, 0.7814, 0.8357, 0.89),
+    "pushing": (8.2, 9.857, 11.514, 13.171, 14.829, 16.486, 18.143, 19.8),
+}
 GRIDS: dict[str, tuple[dict[str, tuple[float, ...]], range]] = {
     "study": (STUDY, range(2)),
     "heldout": (HELDOUT, range(100, 105)),
+    "wide": (WIDE, range(700, 705)),
+    "wide2": (WIDE2, range(800, 805)),
 }
 TEACHERS = (
     ("mistake", 0.0),
