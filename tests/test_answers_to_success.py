@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from hipref.bench.model_choice import _first_for_good, ratio_interval
 from hipref.experiments.answers_tables import (
     answers_to_step,
     efficiency,
@@ -71,6 +72,36 @@ def test_answers_to_step_is_where_enough_environments_are_within_a_step_for_good
     assert answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"] == 2
     errors[(0.89, 0)] = [0.05, 0.05, 0.05, 0.05]
     assert np.isnan(answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"])
+
+
+def test_the_benchmarks_resampled_count_is_answers_to_step_on_the_same_environments() -> None:
+    rng = np.random.default_rng(3)
+    counts = [1, 2, 4, 8, 16]
+    for _ in range(30):
+        errors = {
+            (0.5 + i / 100, 0): list(rng.choice([0.005, 0.05], size=len(counts), p=[0.8, 0.2]))
+            for i in range(int(rng.integers(5, 15)))
+        }
+        within = np.array([[e <= 0.01 for e in values] for values in errors.values()])
+        expected = answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"]
+        got = _first_for_good(within[None], np.array(counts, dtype=float))[0]
+        assert got == expected or (np.isnan(expected) and np.isinf(got))
+
+
+def test_the_ratio_interval_pairs_the_two_learners_on_the_same_environments() -> None:
+    # Two of twelve environments are slow; told nothing needs one answer more than told the model in each.
+    slow, fast = [0.05, 0.05, 0.005, 0.005], [0.05, 0.005, 0.005, 0.005]
+    errors = {(0.5 + i / 100, 0): slow if i % 6 == 0 else fast for i in range(12)}
+    later = {key: [values[0], *values[:-1]] for key, values in errors.items()}
+    rows = pd.concat(
+        [_answers_rows(errors, [1, 2, 3, 4]), _answers_rows(later, [1, 2, 3, 4]).assign(told="nothing")],
+        ignore_index=True,
+    )
+    interval = ratio_interval(rows, resamples=400).iloc[0]
+    # Paired, a resample with at most one slow environment gives 3 / 2, else 4 / 3. Drawn apart, the two
+    # counts would also give 1 and 2.
+    assert interval["ratio_low"] == pytest.approx(4 / 3)
+    assert interval["ratio_high"] == pytest.approx(3 / 2)
 
 
 def test_efficiency_finds_the_answers_the_bayesian_learner_needs_to_match_pesi() -> None:

@@ -19,11 +19,13 @@ import argparse
 import math
 import time
 
+import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
 from hipref.experiments.answers_tables import (
     CONSISTENT,
+    SETTING,
     answers_to_step,
     told_against_chosen,
 )
@@ -88,13 +90,54 @@ def main() -> None:
                         seconds[told].append(time.perf_counter() - start)
     rows = pd.concat(frames, ignore_index=True)
     table = told_against_chosen(answers_to_step(rows), rows)
+    table = table.merge(ratio_interval(rows), on=["domain", "teacher", "noise"], how="left")
     columns = ["domain", "teacher", "noise", "model", "nothing", "model_error", "nothing_error"]
-    print(table[[*columns, "nothing_ratio", "compared"]].to_string(index=False))
+    print(table[[*columns, "nothing_ratio", "ratio_low", "ratio_high", "compared"]].to_string(index=False))
     print(
         myopic_floor(tuple(truths), args.episodes).to_string(index=False, float_format=lambda v: f"{v:.3g}")
     )
     for told, times in seconds.items():
         print(f"told {told}: {sum(times) / len(times):.2f} s per run of {args.episodes} answers")
+
+
+def ratio_interval(rows: pd.DataFrame, resamples: int = 2000, seed: int = 0) -> pd.DataFrame:
+    """Per setting where the told learner gets within one step, a 95 % percentile interval of told nothing's
+    answers to one step over told the model's, the environments resampled with replacement, the same draw
+    for both learners (they share truths, seeds and teacher draws). A resample where either never gets there
+    counts as an infinite ratio, or as zero where only the told learner does not, and is left out where
+    neither does."""
+    errors = rows[(rows["part"] == "answers") & (rows["metric"] == "param_error")]
+    rng = np.random.default_rng(seed)
+    out = []
+    for (domain, teacher, noise), group in errors.groupby(SETTING[:3], sort=False):
+        step = domain_spec(str(domain)).candidates.resolution * (1 + 1e-9)
+        reached = {}
+        for told, curves in group.groupby("told"):
+            wide = curves.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
+            reached[told] = (wide.to_numpy() <= step, wide.columns.to_numpy(dtype=float))
+        within_model, counts = reached["model"]
+        within_nothing, _ = reached["nothing"]
+        draws = rng.integers(within_model.shape[0], size=(resamples, within_model.shape[0]))
+        with np.errstate(divide="ignore", invalid="ignore"):  # neither there: NaN, left out
+            ratios = _first_for_good(within_nothing[draws], counts) / _first_for_good(
+                within_model[draws], counts
+            )
+        ratios = ratios[~np.isnan(ratios)]
+        low, high = (
+            np.quantile(ratios, [0.025, 0.975], method="inverted_cdf") if ratios.size else (np.nan, np.nan)
+        )
+        out.append((domain, teacher, noise, low, high))
+    return pd.DataFrame(out, columns=["domain", "teacher", "noise", "ratio_low", "ratio_high"])
+
+
+def _first_for_good(within: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Per resample (resamples, environments, checkpoints), the answers after which at least CONSISTENT of
+    the environments are within one step up to the last checkpoint (inf if never), as `answers_to_step`."""
+    short = within.mean(axis=1) < CONSISTENT
+    last_short = np.where(short.any(axis=1), short.shape[1] - 1 - np.argmax(short[:, ::-1], axis=1), -1)
+    first = last_short + 1
+    padded = np.append(counts, np.inf)
+    return padded[first]
 
 
 def myopic_floor(domains: tuple[str, ...], answers: int) -> pd.DataFrame:
