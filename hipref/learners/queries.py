@@ -10,15 +10,23 @@ models (`hipref.learners.answer_models`) and picks two candidates of Phi:
   I = H(sum_c w_c P(y | c)) - sum_c w_c H(P(y | c)), with P(y | c) averaged over the answer models the
   belief weighs at c (what the answer tells of phi, not of the teacher): under the flip model,
   probabilistic bisection (the pair whose midpoint is the belief's median); under the distance model,
-  pairs a teacher can tell apart. Three other targets were measured for the learner told nothing against
-  the one told the model (`python -m hipref.bench.model_choice --grid wide --episodes 200`, 40 environments
-  per domain, 12 teacher settings): this one left told nothing over 1.25 times told the model's answers
-  in 3 settings; information about the step of Phi holding phi in 6; the posterior's expected mass within
-  one step of its best value after the answer (one-step lookahead on notebook 12's criterion) in 6, and it
-  slowed the told learner too (pushing at 20 % flips 25 answers against 19); information about phi and the
-  answer model together in 10 (it spends answers telling teachers apart), at five times the time;
+  pairs a teacher can tell apart;
 - 'volume_removal': APReL's expected volume removed, 1 - sum_y P(y)^2 (Sadigh et al. 2017), which ignores
   how noisy each answer is.
+
+Information gain against other ways to choose under a learner told nothing of the teacher, measured as the
+settings where it needs over 1.25 times the answers of the learner told the model (`python -m
+hipref.bench.model_choice --grid wide --episodes 200`: 40 environments per domain, 12 teacher settings):
+
+- information about phi, averaged over the heaviest answer models (this rule): 3 settings;
+- information about the step of Phi that holds phi: 6;
+- the posterior's expected mass within one step of its best value after the answer (one-step lookahead on
+  notebook 12's criterion): 6, and it slowed the told learner too (pushing at 20 % flips, 25 answers against
+  19);
+- information about phi and the answer model together: 10, at five times the time (it spends answers telling
+  teachers apart);
+- information about phi under one answer model drawn from the posterior: 8, and 8 on the second grid
+  (`--grid wide2`), where this rule leaves 4.
 
 Ties (many pairs share a midpoint) are broken uniformly with the learner's rng. The likelihood of every
 pair at every cell is computed once per (candidates, cells, model) and kept (`pair_table`), so a choice
