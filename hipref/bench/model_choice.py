@@ -101,11 +101,11 @@ def main() -> None:
 
 
 def ratio_interval(rows: pd.DataFrame, resamples: int = 2000, seed: int = 0) -> pd.DataFrame:
-    """Per setting where the told learner gets within one step, a 95 % percentile interval of told nothing's
-    answers to one step over told the model's, the environments resampled with replacement, the same draw
-    for both learners (they share truths, seeds and teacher draws). A resample where either never gets there
-    counts as an infinite ratio, or as zero where only the told learner does not, and is left out where
-    neither does."""
+    """Per setting, a 95 % percentile interval of told nothing's answers to one step over told the model's,
+    the environments resampled with replacement, the same draw for both learners (they share truths, seeds
+    and teacher draws). A resample where only told nothing never gets there counts as an infinite ratio,
+    where only the told learner never does as zero, and where neither does it is left out (NaN bounds when
+    every resample is: the myopic teacher)."""
     errors = rows[(rows["part"] == "answers") & (rows["metric"] == "param_error")]
     rng = np.random.default_rng(seed)
     out = []
