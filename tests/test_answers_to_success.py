@@ -8,10 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hipref.bench.model_choice import _first_for_good, ratio_interval
+from hipref.bench.model_choice import ratio_interval
 from hipref.experiments.answers_tables import (
     answers_to_step,
     efficiency,
+    first_for_good,
     shannon_floor,
     told_against_chosen,
 )
@@ -74,18 +75,19 @@ def test_answers_to_step_is_where_enough_environments_are_within_a_step_for_good
     assert np.isnan(answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"])
 
 
-def test_the_benchmarks_resampled_count_is_answers_to_step_on_the_same_environments() -> None:
+def test_the_answers_to_a_step_of_many_sets_at_once_follow_the_definition() -> None:
+    # The definition, checkpoint by checkpoint: the first count from which on every checkpoint has at least
+    # 90 % of the environments within one step.
+    def counted(within: np.ndarray, counts: np.ndarray) -> float:
+        shares = within.mean(axis=0)
+        return next((float(c) for k, c in enumerate(counts) if (shares[k:] >= 0.9).all()), math.inf)
+
     rng = np.random.default_rng(3)
-    counts = [1, 2, 4, 8, 16]
-    for _ in range(30):
-        errors = {
-            (0.5 + i / 100, 0): list(rng.choice([0.005, 0.05], size=len(counts), p=[0.8, 0.2]))
-            for i in range(int(rng.integers(5, 15)))
-        }
-        within = np.array([[e <= 0.01 for e in values] for values in errors.values()])
-        expected = answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"]
-        got = _first_for_good(within[None], np.array(counts, dtype=float))[0]
-        assert got == expected or (np.isnan(expected) and np.isinf(got))
+    counts = np.array([1.0, 2.0, 4.0, 8.0, 16.0])
+    for environments in (5, 10, 14):
+        sets = rng.random((40, environments, counts.size)) < 0.85
+        expected = [counted(within, counts) for within in sets]
+        np.testing.assert_array_equal(first_for_good(sets, counts), expected)
 
 
 def test_the_ratio_interval_pairs_the_two_learners_on_the_same_environments() -> None:

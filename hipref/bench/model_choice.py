@@ -26,8 +26,11 @@ from scipy.stats import norm
 from hipref.experiments.answers_tables import (
     CONSISTENT,
     SETTING,
+    answer_errors,
     answers_to_step,
+    first_for_good,
     told_against_chosen,
+    within_step,
 )
 from hipref.experiments.answers_to_success import (
     AnswersCell,
@@ -106,20 +109,14 @@ def ratio_interval(rows: pd.DataFrame, resamples: int = 2000, seed: int = 0) -> 
     and teacher draws). A resample where only told nothing never gets there counts as an infinite ratio,
     where only the told learner never does as zero, and where neither does it is left out (NaN bounds when
     every resample is: the myopic teacher)."""
-    errors = rows[(rows["part"] == "answers") & (rows["metric"] == "param_error")]
     rng = np.random.default_rng(seed)
     out = []
-    for (domain, teacher, noise), group in errors.groupby(SETTING[:3], sort=False):
-        step = domain_spec(str(domain)).candidates.resolution * (1 + 1e-9)
-        reached = {}
-        for told, curves in group.groupby("told"):
-            wide = curves.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
-            reached[told] = (wide.to_numpy() <= step, wide.columns.to_numpy(dtype=float))
-        within_model, counts = reached["model"]
-        within_nothing, _ = reached["nothing"]
+    for (domain, teacher, noise), group in answer_errors(rows).groupby(SETTING[:3], sort=False):
+        within_model, counts = within_step(group[group["told"] == "model"], str(domain))
+        within_nothing, _ = within_step(group[group["told"] == "nothing"], str(domain))
         draws = rng.integers(within_model.shape[0], size=(resamples, within_model.shape[0]))
         with np.errstate(divide="ignore", invalid="ignore"):  # neither there: NaN, left out
-            ratios = _first_for_good(within_nothing[draws], counts) / _first_for_good(
+            ratios = first_for_good(within_nothing[draws], counts) / first_for_good(
                 within_model[draws], counts
             )
         ratios = ratios[~np.isnan(ratios)]
@@ -128,16 +125,6 @@ def ratio_interval(rows: pd.DataFrame, resamples: int = 2000, seed: int = 0) -> 
         )
         out.append((domain, teacher, noise, low, high))
     return pd.DataFrame(out, columns=["domain", "teacher", "noise", "ratio_low", "ratio_high"])
-
-
-def _first_for_good(within: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Per resample (resamples, environments, checkpoints), the answers after which at least CONSISTENT of
-    the environments are within one step up to the last checkpoint (inf if never), as `answers_to_step`."""
-    short = within.mean(axis=1) < CONSISTENT
-    last_short = np.where(short.any(axis=1), short.shape[1] - 1 - np.argmax(short[:, ::-1], axis=1), -1)
-    first = last_short + 1
-    padded = np.append(counts, np.inf)
-    return padded[first]
 
 
 def myopic_floor(domains: tuple[str, ...], answers: int) -> pd.DataFrame:

@@ -35,20 +35,39 @@ def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFra
     0.25 kg) in at least `share` of the environments and stays so up to the last answer (NaN if never),
     beside the Shannon floor for the paper's teacher (`shannon_floor`, K = |Phi|, e its flip rate) and
     their ratio."""
-    errors = rows[(rows["part"] == "answers") & (rows["metric"] == "param_error")]
     out = []
-    for setting, group in errors.groupby(SETTING, sort=False):
+    for setting, group in answer_errors(rows).groupby(SETTING, sort=False):
         domain, teacher, noise = setting[0], setting[1], float(setting[2])
-        phi = domain_spec(str(domain)).candidates
-        wide = group.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
-        within = (wide <= phi.resolution * (1 + 1e-9)).mean(axis=0)
-        failing = np.flatnonzero(within.to_numpy() < share)
-        counts = within.index.to_numpy()
-        first_for_good = failing[-1] + 1 if failing.size else 0  # after the last count that falls short
-        reached = counts[first_for_good] if first_for_good < counts.size else np.nan
-        floor = shannon_floor(phi.size, noise) if teacher == "mistake" else np.nan
-        out.append((*setting, len(wide), float(reached), floor, float(reached) / floor))
+        within, counts = within_step(group, str(domain))
+        reached = float(first_for_good(within[None], counts, share)[0])
+        reached = reached if math.isfinite(reached) else np.nan
+        floor = (
+            shannon_floor(domain_spec(str(domain)).candidates.size, noise) if teacher == "mistake" else np.nan
+        )
+        out.append((*setting, len(within), reached, floor, reached / floor))
     return pd.DataFrame(out, columns=[*SETTING, "environments", "answers", "floor", "ratio"])
+
+
+def answer_errors(rows: pd.DataFrame) -> pd.DataFrame:
+    """The answers part's rows of the estimate's error."""
+    return rows[(rows["part"] == "answers") & (rows["metric"] == "param_error")]
+
+
+def within_step(errors: pd.DataFrame, domain: str) -> tuple[np.ndarray, np.ndarray]:
+    """Of one curve's `answer_errors`: (environments, checkpoints) whether each environment's error is within
+    one step of Phi, its environments ordered by (truth, seed); and the checkpoints' answer counts."""
+    wide = errors.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
+    step = domain_spec(domain).candidates.resolution * (1 + 1e-9)
+    return wide.to_numpy() <= step, wide.columns.to_numpy(dtype=float)
+
+
+def first_for_good(within: np.ndarray, counts: np.ndarray, share: float = CONSISTENT) -> np.ndarray:
+    """Per set of environments in (sets, environments, checkpoints) `within` (`within_step`), the answers
+    after which at least `share` of them are within one step up to the last checkpoint: the count after the
+    last one that falls short (inf if the last does)."""
+    short = within.mean(axis=1) < share
+    last_short = np.where(short.any(axis=1), short.shape[1] - 1 - np.argmax(short[:, ::-1], axis=1), -1)
+    return np.append(counts, np.inf)[last_short + 1]
 
 
 def efficiency(rows: pd.DataFrame) -> pd.DataFrame:
