@@ -288,12 +288,14 @@ def _model_choice(steps: pd.DataFrame, rows: pd.DataFrame) -> dict[str, str]:
             if r.compared == "answers"
             else f"final error {r.nothing_error:.3g} against {r.model_error:.3g}"
         )
+        + f" ({r.nothing_ratio:.2f}, {r.nothing_low:.2f}-{r.nothing_high:.2f})"
         for r in past.itertuples()
     ]
     return {
         "nb12_choice_worst": f"{models['nothing_ratio'].max():.2f}",
         "nb12_choice_past": f"{len(past)} of {len(models)}",
         "nb12_choice_list": "; ".join(listed).replace("%", " %") or "none",
+        "nb12_choice_surely": str(int((models["nothing_low"] > MODEL_CHOICE_BOUND).sum())),
     }
 
 

@@ -8,11 +8,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hipref.bench.model_choice import ratio_interval
+from hipref.bench.model_choice import TEACHERS, teacher_family
 from hipref.experiments.answers_tables import (
     answers_to_step,
     efficiency,
     first_for_good,
+    ratio_interval,
     shannon_floor,
     told_against_chosen,
 )
@@ -23,7 +24,9 @@ from hipref.experiments.answers_to_success import (
     run_answers,
 )
 from hipref.experiments.si_run import FineTuning, SIRun
+from hipref.learners.answer_models import told
 from hipref.learners.pesi import PESIConfig
+from hipref.teachers.models import TeacherModel
 
 
 def test_the_shannon_floor_is_log2_k_over_the_channel_capacity() -> None:
@@ -99,11 +102,28 @@ def test_the_ratio_interval_pairs_the_two_learners_on_the_same_environments() ->
         [_answers_rows(errors, [1, 2, 3, 4]), _answers_rows(later, [1, 2, 3, 4]).assign(told="nothing")],
         ignore_index=True,
     )
-    interval = ratio_interval(rows, resamples=400).iloc[0]
+    low, high = ratio_interval(rows, "nothing", by_answers=True, resamples=400)
     # Paired, a resample with at most one slow environment gives 3 / 2, else 4 / 3. Drawn apart, the two
     # counts would also give 1 and 2.
-    assert interval["ratio_low"] == pytest.approx(4 / 3)
-    assert interval["ratio_high"] == pytest.approx(3 / 2)
+    assert (low, high) == pytest.approx((4 / 3, 3 / 2))
+    table = told_against_chosen(answers_to_step(rows), rows).iloc[0]
+    assert table["nothing_ratio"] == pytest.approx(4 / 3)
+    assert (table["nothing_low"], table["nothing_high"]) == pytest.approx((4 / 3, 3 / 2))
+
+
+def test_where_the_told_learner_never_gets_there_the_interval_pairs_the_final_errors() -> None:
+    # Never within one step: the ratio is of the mean final errors, the same environments drawn for both.
+    errors = {(0.5 + i / 100, 0): [0.5, 0.1 + 0.1 * i] for i in range(10)}
+    doubled = {key: [2 * v for v in values] for key, values in errors.items()}
+    rows = pd.concat(
+        [_answers_rows(errors, [1, 2]), _answers_rows(doubled, [1, 2]).assign(told="nothing")],
+        ignore_index=True,
+    )
+    assert ratio_interval(rows, "nothing", by_answers=False) == pytest.approx((2.0, 2.0))
+    table = told_against_chosen(answers_to_step(rows), rows).iloc[0]
+    assert table["compared"] == "final error" and table["nothing_ratio"] == pytest.approx(2.0)
+    assert (table["nothing_low"], table["nothing_high"]) == pytest.approx((2.0, 2.0))
+    assert np.isnan(table["kind_low"]) and np.isnan(table["kind_high"])
 
 
 def test_efficiency_finds_the_answers_the_bayesian_learner_needs_to_match_pesi() -> None:
@@ -165,6 +185,7 @@ def test_told_against_chosen_divides_answers_or_else_final_errors() -> None:
                 metric="param_error",
                 episode=330,
                 seed=0,
+                ground_truth=0.7,
                 value=v,
             )
             for teacher in ("mistake", "myopic")
@@ -192,6 +213,23 @@ def test_an_answers_run_is_deterministic_and_reaches_the_truth_with_perfect_answ
     errors = first[first.metric == "param_error"].set_index("episode").value
     assert errors.loc[12] <= 0.25
     assert set(first.told) == {"kind"} and set(first.part) == {"answers"}
+
+
+def test_a_learner_given_only_the_true_model_answers_as_the_learner_told_it() -> None:
+    # The models a run is given replace what its cell says it is told.
+    cell = AnswersCell("wiping", 0.613, 5, "distance", 0.0, "information_gain", "nothing", 15)
+    given = run_answers(cell, (told(TeacherModel("distance"), 0.0),))
+    told_cell = run_answers(AnswersCell("wiping", 0.613, 5, "distance", 0.0, "information_gain", "model", 15))
+    weighing = run_answers(cell)
+    pd.testing.assert_frame_equal(given.drop(columns="told"), told_cell.drop(columns="told"))
+    assert not given["value"].equals(weighing["value"])
+
+
+def test_the_teachers_family_holds_each_benchmark_teacher_once() -> None:
+    family = teacher_family()
+    assert set(family) == {told(TeacherModel(kind), noise) for kind, noise in TEACHERS}
+    assert len(family) == len(set(family)) == 7
+    assert {m.kind for m in family} == {"flip", "stochastic", "skip", "equal", "myopic", "distance"}
 
 
 @pytest.mark.parametrize(

@@ -105,24 +105,65 @@ def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame
     and the mean error at the last answer of the learner told the teacher's kind only and of the one told
     nothing (every model weighed by its marginal likelihood), each against the learner told the true
     model: `kind_ratio`, `nothing_ratio` divide the answers, or where the told learner never gets within one
-    step, the final errors. Settings with the told learner alone (`blind_noise_levels`) are left out."""
+    step, the final errors; `kind_low`, `kind_high`, `nothing_low`, `nothing_high` bound each ratio
+    (`ratio_interval`). Settings with the told learner alone (`blind_noise_levels`) are left out."""
     keys = ["domain", "teacher", "noise"]
     ig = steps[steps["query_rule"] == "information_gain"]
     blind = ig[ig["told"] != "model"].set_index(keys).index
     ig = ig[ig.set_index(keys).index.isin(blind)]
     answers = ig.pivot(index=keys, columns="told", values="answers")
-    errors = rows[
-        (rows["part"] == "answers")
-        & (rows["metric"] == "param_error")
-        & (rows["query_rule"] == "information_gain")
-    ]
+    errors = answer_errors(rows)
+    errors = errors[errors["query_rule"] == "information_gain"]
     last = errors[errors["episode"] == errors["episode"].max()]
     final = last.groupby([*keys, "told"])["value"].mean().unstack("told")
     out = answers.join(final.add_suffix("_error")).reindex(columns=[*TOLD, *(f"{t}_error" for t in TOLD)])
     reached = out["model"].notna()
+    settings = errors.groupby(keys, sort=False)
     for told_ in ("kind", "nothing"):
         out[f"{told_}_ratio"] = np.where(
             reached, out[told_] / out["model"], out[f"{told_}_error"] / out["model_error"]
         )
+        bounds = [
+            ratio_interval(settings.get_group(key), told_, bool(by_answers))
+            for key, by_answers in reached.items()
+        ]
+        out[f"{told_}_low"], out[f"{told_}_high"] = [b[0] for b in bounds], [b[1] for b in bounds]
     out["compared"] = np.where(reached, "answers", "final error")
     return out.reset_index()
+
+
+def ratio_interval(
+    errors: pd.DataFrame, told_: str, by_answers: bool, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float]:
+    """Of one setting's `answer_errors` under one query rule: a 95 % percentile interval of the learner told
+    `told_`'s answers to one step (`by_answers`) or mean final error over the learner told the model's, the
+    environments resampled with replacement, the same draw for both (they share truths, seeds and teacher
+    draws). Counting answers, a resample where only the learner told `told_` never gets there counts as an
+    infinite ratio, where only the told learner never does as zero, and where neither does it is left out;
+    NaN bounds when every resample is, or without the learner told `told_`."""
+    model, other = errors[errors["told"] == "model"], errors[errors["told"] == told_]
+    if other.empty:
+        return np.nan, np.nan
+    domain = str(errors["domain"].iloc[0])
+    within_model, counts = within_step(model, domain)
+    within_other, _ = within_step(other, domain)
+    if within_model.shape != within_other.shape:
+        raise ValueError(f"the learner told {told_!r} must be run on the told learner's environments")
+    environments = within_model.shape[0]
+    draws = np.random.default_rng(seed).integers(environments, size=(resamples, environments))
+    with np.errstate(divide="ignore", invalid="ignore"):  # neither there: NaN, left out
+        if by_answers:
+            ratios = first_for_good(within_other[draws], counts) / first_for_good(within_model[draws], counts)
+        else:
+            ratios = final_errors(other)[draws].mean(axis=1) / final_errors(model)[draws].mean(axis=1)
+    ratios = ratios[~np.isnan(ratios)]
+    if not ratios.size:
+        return np.nan, np.nan
+    low, high = np.quantile(ratios, [0.025, 0.975], method="inverted_cdf")
+    return float(low), float(high)
+
+
+def final_errors(errors: pd.DataFrame) -> np.ndarray:
+    """Of one curve's `answer_errors`: each environment's last error, in `within_step`'s order."""
+    wide = errors.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
+    return wide.to_numpy()[:, -1]

@@ -32,7 +32,7 @@ from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_clips import run_streams
 from hipref.experiments.si_methods import BAYES_METHODS, COTEACHING_METHODS, METHODS
 from hipref.experiments.si_run import FineTuning, SIRun, run_si
-from hipref.learners.answer_models import TOLD, hypotheses, told
+from hipref.learners.answer_models import TOLD, AnswerModel, hypotheses, told
 from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.pesi import PESIConfig
 from hipref.learners.queries import QUERY_RULES
@@ -97,17 +97,19 @@ class AnswersCell:
         check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
 
 
-def run_answers(cell: AnswersCell) -> pd.DataFrame:
+def run_answers(cell: AnswersCell, models: tuple[AnswerModel, ...] | None = None) -> pd.DataFrame:
     """The learner's error after each of `answer_counts` (a sweep cell; under a chosen query rule also the
     error of the same posterior's median, 'median_error'), and at the end the posterior's filter of wrong
-    answers against the teacher's record and the probability it gives the true kind."""
+    answers against the teacher's record and the probability it gives the true kind. `models` replaces the
+    answer models the learner weighs (`hypotheses` of what it is told, by default)."""
     phi = domain_spec(cell.domain).candidates
     teacher_seq, learner_seq, _, _ = run_streams(cell.seed, cell.ground_truth)
     model = TeacherModel(cell.teacher)
     teacher = ScriptedPreferenceTeacher(
         cell.ground_truth, cell.noise, np.random.default_rng(teacher_seq), model, scale=phi.high - phi.low
     )
-    models = hypotheses(model, cell.noise, cell.told)
+    if models is None:
+        models = hypotheses(model, cell.noise, cell.told)
     learner = BayesLearner(
         phi, BayesConfig(query_rule=cell.query_rule, answer_models=models), integer_seed(learner_seq)
     )
