@@ -124,6 +124,9 @@ def test_where_the_told_learner_never_gets_there_the_interval_pairs_the_final_er
     assert table["compared"] == "final error" and table["nothing_ratio"] == pytest.approx(2.0)
     assert (table["nothing_low"], table["nothing_high"]) == pytest.approx((2.0, 2.0))
     assert np.isnan(table["kind_low"]) and np.isnan(table["kind_high"])
+    moved = rows.assign(seed=np.where(rows["told"] == "nothing", 1, rows["seed"]))
+    with pytest.raises(ValueError, match="environments"):
+        ratio_interval(moved, "nothing", by_answers=False)
 
 
 def test_efficiency_finds_the_answers_the_bayesian_learner_needs_to_match_pesi() -> None:

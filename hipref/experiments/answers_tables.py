@@ -144,11 +144,11 @@ def ratio_interval(
     model, other = errors[errors["told"] == "model"], errors[errors["told"] == told_]
     if other.empty:
         return np.nan, np.nan
+    if _environments(model) != _environments(other):
+        raise ValueError(f"the learner told {told_!r} must be run on the told learner's environments")
     domain = str(errors["domain"].iloc[0])
     within_model, counts = within_step(model, domain)
     within_other, _ = within_step(other, domain)
-    if within_model.shape != within_other.shape:
-        raise ValueError(f"the learner told {told_!r} must be run on the told learner's environments")
     environments = within_model.shape[0]
     draws = np.random.default_rng(seed).integers(environments, size=(resamples, environments))
     with np.errstate(divide="ignore", invalid="ignore"):  # neither there: NaN, left out
@@ -167,3 +167,7 @@ def final_errors(errors: pd.DataFrame) -> np.ndarray:
     """Of one curve's `answer_errors`: each environment's last error, in `within_step`'s order."""
     wide = errors.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
     return wide.to_numpy()[:, -1]
+
+
+def _environments(errors: pd.DataFrame) -> list[tuple[float, int]]:
+    return sorted(set(zip(errors["ground_truth"], errors["seed"], strict=True)))
