@@ -284,9 +284,11 @@ def _model_choice(steps: pd.DataFrame, rows: pd.DataFrame) -> dict[str, str]:
     listed = [
         f"{r.teacher} teacher at {r.noise:.0%} in {r.domain}, "
         + (
-            f"{r.nothing:g} answers against {r.model:g}"
-            if r.compared == "answers"
-            else f"final error {r.nothing_error:.3g} against {r.model_error:.3g}"
+            f"final error {r.nothing_error:.3g} against {r.model_error:.3g}"
+            if r.compared != "answers"
+            else f"{r.nothing:g} answers against {r.model:g}"
+            if np.isfinite(r.nothing)
+            else f"never within one step, against {r.model:g} answers"
         )
         + f" ({r.nothing_ratio:.2f}, {r.nothing_low:.2f}-{r.nothing_high:.2f})"
         for r in past.itertuples()

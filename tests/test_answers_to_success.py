@@ -111,6 +111,45 @@ def test_the_ratio_interval_pairs_the_two_learners_on_the_same_environments() ->
     assert (table["nothing_low"], table["nothing_high"]) == pytest.approx((4 / 3, 3 / 2))
 
 
+def test_the_ratio_interval_resamples_truths_with_all_their_seeds() -> None:
+    # With perfect answers a truth's seeds are copies of one environment: five copies of each truth must give
+    # the interval of the truths alone, not one five times as certain.
+    slow, fast = [0.05, 0.05, 0.005, 0.005], [0.05, 0.005, 0.005, 0.005]
+    once = {(0.5 + i / 100, 0): slow if i % 4 == 0 else fast for i in range(8)}
+    copies = {(truth, seed): values for (truth, _), values in once.items() for seed in range(5)}
+
+    def later(errors: dict[tuple[float, int], list[float]]) -> pd.DataFrame:
+        shifted = {key: [values[0], *values[:-1]] for key, values in errors.items()}
+        return pd.concat(
+            [
+                _answers_rows(errors, [1, 2, 3, 4]),
+                _answers_rows(shifted, [1, 2, 3, 4]).assign(told="nothing"),
+            ],
+            ignore_index=True,
+        )
+
+    interval = ratio_interval(later(copies), "nothing", by_answers=True, resamples=400)
+    assert interval == ratio_interval(later(once), "nothing", by_answers=True, resamples=400)
+    assert interval[0] < interval[1]
+    uneven = later(copies)
+    uneven = uneven[~((uneven["ground_truth"] == 0.5) & (uneven["seed"] == 4))]
+    with pytest.raises(ValueError, match="truths x seeds"):
+        ratio_interval(uneven, "nothing", by_answers=True)
+
+
+def test_where_the_learner_not_told_never_gets_there_its_ratio_is_infinite() -> None:
+    errors = {(0.5 + i / 100, 0): [0.05, 0.005] for i in range(6)}
+    never = {key: [0.05, 0.05] for key in errors}
+    rows = pd.concat(
+        [_answers_rows(errors, [1, 2]), _answers_rows(never, [1, 2]).assign(told="nothing")],
+        ignore_index=True,
+    )
+    table = told_against_chosen(answers_to_step(rows), rows).iloc[0]
+    assert table["compared"] == "answers" and np.isnan(table["nothing"])
+    assert table["nothing_ratio"] == np.inf and table["nothing_low"] == table["nothing_high"] == np.inf
+    assert np.isnan(table["kind_ratio"])
+
+
 def test_where_the_told_learner_never_gets_there_the_interval_pairs_the_final_errors() -> None:
     # Never within one step: the ratio is of the mean final errors, the same environments drawn for both.
     errors = {(0.5 + i / 100, 0): [0.5, 0.1 + 0.1 * i] for i in range(10)}

@@ -13,9 +13,8 @@ learner of its answers can be within one step in 90 % of environments) and the m
 each. Nothing is written to disk.
 
 `--family teachers` gives the learner told nothing only the answer models of the benchmark's own seven
-teachers (`teacher_family`) instead of `model_family()`'s 30: the most favourable set a learner that chooses
-the model could weigh, holding every teacher it meets and no other. What it still needs beyond told the
-model is the cost of choosing itself, not of a broad family.
+teachers (`teacher_family`) instead of `model_family()`'s 30: every teacher it meets and no other, so what it
+still needs beyond told the model is not the cost of models no teacher follows.
 """
 
 from __future__ import annotations

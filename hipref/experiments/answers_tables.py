@@ -104,27 +104,33 @@ def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame
     """Per domain, teacher and flip rate under information gain: the answers to one step (`answers_to_step`)
     and the mean error at the last answer of the learner told the teacher's kind only and of the one told
     nothing (every model weighed by its marginal likelihood), each against the learner told the true
-    model: `kind_ratio`, `nothing_ratio` divide the answers, or where the told learner never gets within one
-    step, the final errors; `kind_low`, `kind_high`, `nothing_low`, `nothing_high` bound each ratio
-    (`ratio_interval`). Settings with the told learner alone (`blind_noise_levels`) are left out."""
+    model: `kind_ratio`, `nothing_ratio` divide the answers (inf where only the learner not told never gets
+    within one step), or where the told learner never gets there, the final errors; `kind_low`,
+    `kind_high`, `nothing_low`, `nothing_high` bound each ratio (`ratio_interval`). Settings with the told
+    learner alone (`blind_noise_levels`) are left out."""
     keys = ["domain", "teacher", "noise"]
     ig = steps[steps["query_rule"] == "information_gain"]
     blind = ig[ig["told"] != "model"].set_index(keys).index
     ig = ig[ig.set_index(keys).index.isin(blind)]
     answers = ig.pivot(index=keys, columns="told", values="answers")
+    ran = ig.assign(ran=1.0).pivot(index=keys, columns="told", values="ran").notna()
     errors = answer_errors(rows)
     errors = errors[errors["query_rule"] == "information_gain"]
     last = errors[errors["episode"] == errors["episode"].max()]
     final = last.groupby([*keys, "told"])["value"].mean().unstack("told")
     out = answers.join(final.add_suffix("_error")).reindex(columns=[*TOLD, *(f"{t}_error" for t in TOLD)])
     reached = out["model"].notna()
-    settings = errors.groupby(keys, sort=False)
+    settings = dict(iter(errors.groupby(keys, sort=False)))
     for told_ in ("kind", "nothing"):
+        never = ran.get(told_, pd.Series(False, index=ran.index)).reindex(out.index, fill_value=False)
+        never &= reached & out[told_].isna()
         out[f"{told_}_ratio"] = np.where(
-            reached, out[told_] / out["model"], out[f"{told_}_error"] / out["model_error"]
+            never,
+            np.inf,
+            np.where(reached, out[told_] / out["model"], out[f"{told_}_error"] / out["model_error"]),
         )
         bounds = [
-            ratio_interval(settings.get_group(key), told_, bool(by_answers))
+            ratio_interval(settings[key], told_, bool(by_answers)) if key in settings else (np.nan, np.nan)
             for key, by_answers in reached.items()
         ]
         out[f"{told_}_low"], out[f"{told_}_high"] = [b[0] for b in bounds], [b[1] for b in bounds]
@@ -136,21 +142,29 @@ def ratio_interval(
     errors: pd.DataFrame, told_: str, by_answers: bool, resamples: int = 2000, seed: int = 0
 ) -> tuple[float, float]:
     """Of one setting's `answer_errors` under one query rule: a 95 % percentile interval of the learner told
-    `told_`'s answers to one step (`by_answers`) or mean final error over the learner told the model's, the
-    environments resampled with replacement, the same draw for both (they share truths, seeds and teacher
-    draws). Counting answers, a resample where only the learner told `told_` never gets there counts as an
-    infinite ratio, where only the told learner never does as zero, and where neither does it is left out;
-    NaN bounds when every resample is, or without the learner told `told_`."""
+    `told_`'s answers to one step (`by_answers`) or mean final error over the learner told the model's. The
+    truths are resampled with replacement, each with all its seeds (with perfect answers the seeds of a
+    truth are copies of one environment), the same draw for both learners (they share truths, seeds and
+    teacher draws). Counting answers, a resample where only the learner told `told_` never gets there
+    counts as an infinite ratio, where only the told learner never does as zero, and where neither does it
+    is left out; NaN bounds when every resample is, or without either learner."""
     model, other = errors[errors["told"] == "model"], errors[errors["told"] == told_]
-    if other.empty:
+    if model.empty or other.empty:
         return np.nan, np.nan
-    if _environments(model) != _environments(other):
-        raise ValueError(f"the learner told {told_!r} must be run on the told learner's environments")
+    environments = _environments(model)
+    if environments != _environments(other):
+        raise ValueError(
+            f"the learners told the model and told {told_!r} must be run on the same environments"
+        )
+    truths = np.array([truth for truth, _ in environments])
+    clusters = [np.flatnonzero(truths == t) for t in np.unique(truths)]
+    if len({c.size for c in clusters}) > 1:
+        raise ValueError("the environments must be a grid of truths x seeds (as many seeds for every truth)")
     domain = str(errors["domain"].iloc[0])
     within_model, counts = within_step(model, domain)
     within_other, _ = within_step(other, domain)
-    environments = within_model.shape[0]
-    draws = np.random.default_rng(seed).integers(environments, size=(resamples, environments))
+    picked = np.random.default_rng(seed).integers(len(clusters), size=(resamples, len(clusters)))
+    draws = np.stack(clusters)[picked].reshape(resamples, -1)
     with np.errstate(divide="ignore", invalid="ignore"):  # neither there: NaN, left out
         if by_answers:
             ratios = first_for_good(within_other[draws], counts) / first_for_good(within_model[draws], counts)
@@ -170,4 +184,5 @@ def final_errors(errors: pd.DataFrame) -> np.ndarray:
 
 
 def _environments(errors: pd.DataFrame) -> list[tuple[float, int]]:
+    """The (truth, seed) of every environment, in `within_step`'s order."""
     return sorted(set(zip(errors["ground_truth"], errors["seed"], strict=True)))
