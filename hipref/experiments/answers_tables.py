@@ -56,9 +56,14 @@ def answer_errors(rows: pd.DataFrame) -> pd.DataFrame:
 def within_step(errors: pd.DataFrame, domain: str) -> tuple[np.ndarray, np.ndarray]:
     """Of one curve's `answer_errors`: (environments, checkpoints) whether each environment's error is within
     one step of Phi, its environments ordered by (truth, seed); and the checkpoints' answer counts."""
-    wide = errors.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
+    wide = _by_environment(errors)
     step = domain_spec(domain).candidates.resolution * (1 + 1e-9)
     return wide.to_numpy() <= step, wide.columns.to_numpy(dtype=float)
+
+
+def _by_environment(errors: pd.DataFrame) -> pd.DataFrame:
+    """One curve's errors as (environments ordered by (truth, seed), checkpoints)."""
+    return errors.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
 
 
 def first_for_good(within: np.ndarray, counts: np.ndarray, share: float = CONSISTENT) -> np.ndarray:
@@ -113,7 +118,6 @@ def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame
     blind = ig[ig["told"] != "model"].set_index(keys).index
     ig = ig[ig.set_index(keys).index.isin(blind)]
     answers = ig.pivot(index=keys, columns="told", values="answers")
-    ran = ig.assign(ran=1.0).pivot(index=keys, columns="told", values="ran").notna()
     errors = answer_errors(rows)
     errors = errors[errors["query_rule"] == "information_gain"]
     last = errors[errors["episode"] == errors["episode"].max()]
@@ -122,8 +126,7 @@ def told_against_chosen(steps: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame
     reached = out["model"].notna()
     settings = dict(iter(errors.groupby(keys, sort=False)))
     for told_ in ("kind", "nothing"):
-        never = ran.get(told_, pd.Series(False, index=ran.index)).reindex(out.index, fill_value=False)
-        never &= reached & out[told_].isna()
+        never = reached & out[told_].isna() & out[f"{told_}_error"].notna()  # it ran, never within a step
         out[f"{told_}_ratio"] = np.where(
             never,
             np.inf,
@@ -179,8 +182,7 @@ def ratio_interval(
 
 def final_errors(errors: pd.DataFrame) -> np.ndarray:
     """Of one curve's `answer_errors`: each environment's last error, in `within_step`'s order."""
-    wide = errors.pivot_table(index=["ground_truth", "seed"], columns="episode", values="value")
-    return wide.to_numpy()[:, -1]
+    return _by_environment(errors).to_numpy()[:, -1]
 
 
 def _environments(errors: pd.DataFrame) -> list[tuple[float, int]]:
