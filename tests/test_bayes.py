@@ -9,7 +9,7 @@ import torch
 
 from hipref.learners.answer_models import ANSWER_KINDS, AnswerModel, model_family, told
 from hipref.learners.bayes import BayesConfig, BayesLearner, PreferencePosterior, answer_column
-from hipref.learners.estimates import most_expected, most_within
+from hipref.learners.estimates import expected_success, most_expected, most_within
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.queries import choose_pair, pair_scores
 from hipref.learners.sysid import CandidateSet, SIModel
@@ -228,6 +228,42 @@ def test_the_estimate_is_the_value_most_probably_within_one_step_of_the_truth() 
     learner.tell(PreferenceQuery((0.6, 0.8), features=np.zeros(0)), 1)  # truth below 0.70
     assert learner.config.estimate == "within_step"
     assert learner.estimate() == pytest.approx(0.65)
+
+
+def test_a_cell_between_midpoints_is_its_whole_interval_half_of_it_one_step_away() -> None:
+    # Most of the mass on the cell standing for (0.70, 0.705), a tail below: read as points, the estimate
+    # sits one step below the cell to gather the tail, and misses a truth in the interval's upper half.
+    posterior = PreferencePosterior(GRID, (AnswerModel(),))
+    cells, stretches = posterior.cells, posterior.stretches
+    bulk = int(np.abs(cells - 0.7025).argmin())
+    assert (stretches[0][bulk], stretches[1][bulk]) == pytest.approx((0.70, 0.705))
+    weights = np.zeros(cells.size)
+    weights[bulk] = 0.9
+    weights[(cells > 0.68) & (cells < 0.6925)] = 0.1 / 4
+    assert most_within(cells, weights, GRID.resolution) == pytest.approx(0.6925)
+    estimate = most_within(cells, weights, GRID.resolution, stretches)
+    assert abs(estimate - 0.7049) <= GRID.resolution  # every truth of the interval within one step
+
+
+def test_expected_success_averages_the_curve_over_each_cells_stretch() -> None:
+    posterior = PreferencePosterior(GRID, (AnswerModel(),))
+    cells, (low, high) = posterior.cells, posterior.stretches
+    weights = np.random.default_rng(3).dirichlet(np.full(cells.size, 0.3))
+    curve = (np.array([-0.03, -0.01, 0.0, 0.02]), np.array([0.2, 0.9, 1.0, 0.4]))
+    # Brute force: each stretch as 2,000 equally spaced points (a point cell as itself).
+    fractions = (np.arange(2000) + 0.5) / 2000
+    phis = low[:, None] + (high - low)[:, None] * fractions[None, :]
+    success = np.interp(cells[:, None, None] - phis[None], *curve, left=0.0, right=0.0).mean(axis=2)
+    computed = expected_success(cells, weights, curve, (low, high))
+    np.testing.assert_allclose(computed, success @ weights, atol=1e-6)
+    # Within one step: a cell's stretch one step away counts half.
+    box = (np.array([-1.0, 1.0]) * GRID.resolution * (1 + 1e-9), np.ones(2))
+    bulk = int(np.abs(cells - 0.7025).argmin())
+    one = np.zeros(cells.size)
+    one[bulk] = 1.0
+    within = expected_success(cells, one, box, (low, high))
+    assert within[np.abs(cells - 0.6925).argmin()] == pytest.approx(0.5, abs=1e-6)
+    assert within[np.abs(cells - 0.695).argmin()] == pytest.approx(1.0)
 
 
 def test_the_most_mass_within_a_step_is_the_expected_success_of_a_box() -> None:

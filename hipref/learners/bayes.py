@@ -73,6 +73,9 @@ class PreferencePosterior:
         for all of it."""
         index = np.arange(self.cells.size)
         self._query_index = 2 * (index // half) + (index % half != 0)
+        self.stretches = _stretches(self.cells, half)
+        """Per cell, the stretch of Phi its weight stands for (`hipref.learners.estimates.Stretches`): a pair
+        midpoint is a point; the cells between two midpoints share the open interval between them."""
         kinds = [m.kind for m in models]
         # Uniform over the kinds, then over each kind's parameters.
         self.log_model_prior = np.array([-np.log(len(set(kinds))) - np.log(kinds.count(k)) for k in kinds])
@@ -176,6 +179,16 @@ class PreferencePosterior:
             (self.models[i], np.bincount(self._query_index, weights=joint[i], minlength=size) / total)
             for i in keep
         ]
+
+
+def _stretches(cells: np.ndarray, half: int) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) per cell: every `half`-th cell (a pair midpoint) a point, the `half` - 1 cells between two
+    of them tiling the interval between them, the first and last reaching its ends."""
+    spacing = cells[1] - cells[0]
+    inside = np.arange(cells.size) % half
+    low = np.where(inside == 1, cells - spacing, cells - spacing / 2)
+    high = np.where(inside == half - 1, cells + spacing, cells + spacing / 2)
+    return np.where(inside == 0, cells, low), np.where(inside == 0, cells, high)
 
 
 @dataclass(frozen=True)
@@ -331,7 +344,12 @@ class BayesLearner:
         reading = self.config.estimate if reading is None else reading
         weights = self.distribution(features)
         return read_estimate(
-            reading, self.posterior.cells, weights, self.candidates.resolution, self._success
+            reading,
+            self.posterior.cells,
+            weights,
+            self.candidates.resolution,
+            self._success,
+            self.posterior.stretches,
         )
 
     def estimates(self, slices: np.ndarray) -> np.ndarray:
