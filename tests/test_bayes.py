@@ -271,9 +271,11 @@ def test_the_most_mass_within_a_step_is_the_expected_success_of_a_box() -> None:
     step = GRID.resolution
     box = (np.array([-step, step]) * (1 + 1e-9), np.ones(2))
     rng = np.random.default_rng(0)
+    stretches = PreferencePosterior(GRID, (AnswerModel(),)).stretches
     for _ in range(50):
         weights = rng.dirichlet(np.full(cells.size, 0.05))
         assert most_within(cells, weights, step) == most_expected(cells, weights, box)
+        assert most_within(cells, weights, step, stretches) == most_expected(cells, weights, box, stretches)
 
 
 def test_the_estimate_is_read_from_every_answer_model_averaged() -> None:

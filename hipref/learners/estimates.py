@@ -94,10 +94,24 @@ def expected_success(
 def most_within(
     cells: np.ndarray, weights: np.ndarray, step: float, stretches: Stretches | None = None
 ) -> float:
-    """The cell x with the most mass within `step` of it (`most_expected` with S one on [-step, step]);
-    of several equally good, the middle one."""
+    """The cell x with the most mass within `step` of it (`most_expected` with S one on [-step, step]), from
+    the posterior's distribution function; of several equally good, the middle one."""
     step = step * (1 + 1e-9)  # cells a step apart by rounding count as within it
-    return most_expected(cells, weights, (np.array([-step, step]), np.ones(2)), stretches)
+    low, high = (cells, cells) if stretches is None else stretches
+    return _middle_best(
+        cells, _mass_below(cells + step, low, high, weights) - _mass_below(cells - step, low, high, weights)
+    )
+
+
+def _mass_below(t: np.ndarray, low: np.ndarray, high: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """The posterior's mass at or below each t, each cell's weight spread over its stretch [low, high]
+    (stretches in order, not overlapping)."""
+    cumulative = np.concatenate([[0.0], np.cumsum(weights)])
+    below = np.searchsorted(high, t, side="right")  # cells wholly at or below t
+    inside = np.minimum(below, weights.size - 1)
+    width = high[inside] - low[inside]
+    share = np.where(width > 0, np.clip((t - low[inside]) / np.where(width > 0, width, 1.0), 0.0, 1.0), 0.0)
+    return cumulative[below] + np.where(below < weights.size, weights[inside] * share, 0.0)
 
 
 def _integral(errors: np.ndarray, rates: np.ndarray, t: np.ndarray) -> np.ndarray:
