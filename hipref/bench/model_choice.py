@@ -1,15 +1,16 @@
 """What not knowing the teacher's model costs the Bayesian learner (notebook 12's answers part, no physics).
 
 `python -m hipref.bench.model_choice --grid heldout` runs the learner under information gain, told the
-teacher's model and told nothing (every answer model weighed by its marginal likelihood), under every teacher
-of notebook 12's claim (the paper's at 0 and 20 % flips, and notebook 11's others without flips), on notebook
-12's full-profile environments ('study': its five truths x seeds 0-1), on held-out ones ('heldout': truths it
-does not use x seeds 100-104) or on two wider held-out grids of 40 environments per domain ('wide' and
-'wide2': 8 truths across the range x seeds 700-704 and 800-804, where the estimate's readings were compared,
-`hipref.learners.estimates`; `--episodes 200`). It prints `told_against_chosen` (answers to one step of Phi in
-90 % of the environments, or final errors where the told learner never gets there), the myopic teacher's floor
-(the error of the best estimate from its remembered pictures themselves, `picture_floor`, against which no
-learner of its answers can be within one step in 90 % of environments) and the mean wall time of one run of
+teacher's model, told only its kind (the kind's parameters weighed) and told nothing (every answer model
+weighed by its marginal likelihood), under every teacher of notebook 12's claim (the paper's at 0 and 20 %
+flips, and notebook 11's others without flips), on notebook 12's full-profile environments ('study': its five
+truths x seeds 0-1), on held-out ones ('heldout': truths it does not use x seeds 100-104) or on two wider
+held-out grids of 40 environments per domain ('wide' and 'wide2': 8 truths across the range x seeds 700-704
+and 800-804, where the estimate's readings were compared, `hipref.learners.estimates`; `--episodes 200`). It
+prints `told_against_chosen` (answers to one step of Phi in 90 % of the environments, or final errors where
+the told learner never gets there), the myopic teacher's floor (the error of the best estimate from its
+remembered pictures themselves, `picture_floor`, against which no learner of its answers can be within one
+step in 90 % of environments) and the mean wall time of one run of
 each. Nothing is written to disk.
 
 `--family teachers` gives the learner told nothing only the answer models of the benchmark's own seven
@@ -86,7 +87,7 @@ def main() -> None:
     truths, seeds = GRIDS[args.grid]
     family = teacher_family() if args.family == "teachers" else None
     frames: list[pd.DataFrame] = []
-    seconds: dict[str, list[float]] = {"model": [], "nothing": []}
+    seconds: dict[str, list[float]] = {"model": [], "kind": [], "nothing": []}
     for domain, values in truths.items():
         for teacher, noise in TEACHERS:
             for level in seconds:
@@ -100,7 +101,8 @@ def main() -> None:
                         seconds[level].append(time.perf_counter() - start)
     rows = pd.concat(frames, ignore_index=True)
     table = told_against_chosen(answers_to_step(rows), rows)
-    columns = ["domain", "teacher", "noise", "model", "nothing", "model_error", "nothing_error"]
+    columns = ["domain", "teacher", "noise", "model", "kind", "nothing", "model_error", "nothing_error"]
+    columns += ["kind_ratio", "kind_low", "kind_high"]
     columns += ["nothing_ratio", "nothing_low", "nothing_high", "compared"]
     print(table[columns].to_string(index=False))
     print(

@@ -244,14 +244,16 @@ class AnswersConfig(SIStudy):
         """The answers part: per environment, the paper's teacher at every flip rate: under uniform pairs
         told its model (as PESI is told the flip rate), under a chosen rule told its model, and at
         `blind_noise_levels` also its kind or nothing; every other teacher under information gain, told its
-        model, its kind or nothing (told the kind, what is left is the cost of the kind's parameters)."""
+        model or nothing."""
         settings = [
             ("mistake", e, rule, told)
             for e in self.noise_levels
             for rule in self.answer_rules
             for told in (TOLD if rule != "uniform" and e in self.blind_noise_levels else ("model",))
         ]
-        settings += [(t, 0.0, "information_gain", told) for t in self.teachers for told in TOLD]
+        settings += [
+            (t, 0.0, "information_gain", told) for t in self.teachers for told in ("model", "nothing")
+        ]
         return [
             AnswersCell(domain, truth, seed, teacher, noise, rule, told, self.episodes)
             for domain in self.domains

@@ -26,7 +26,11 @@ hipref.bench.model_choice --grid wide --episodes 200`: 40 environments per domai
 - information about phi and the answer model together: 10, at five times the time (it spends answers telling
   teachers apart);
 - information about phi under one answer model drawn from the posterior: 8, and 8 on the second grid
-  (`--grid wide2`), where this rule leaves 4.
+  (`--grid wide2`), where this rule leaves 4;
+- information about phi per kind of answer model, the pair maximising the posterior-weighted mean of the log
+  of each kind's share of its own best gain (a compromise between the kinds still plausible): 3, at three
+  times the time; the pair maximising the smallest share over the kinds holding 1 % of the posterior: 11 of
+  notebook 12's 14 settings (`--grid study`, the myopic teacher included), where this rule leaves 10.
 
 Ties (many pairs share a midpoint) are broken uniformly with the learner's rng. The likelihood of every
 pair at every cell is computed once per (candidates, cells, model) and kept (`pair_table`), so a choice
