@@ -341,6 +341,9 @@ def test_pesi_asks_distinct_candidates_of_phi_under_every_chosen_rule(rule: str)
         (lambda: BayesLearner(GRID, BayesConfig(prior="si")), "si_model"),
         (lambda: BayesLearner(GRID).estimate(reading="mode"), "reading"),
         (lambda: BayesLearner(GRID).estimate(reading="expected_success"), "success_curve"),
+        (lambda: BayesLearner(GRID, success_curve=(np.array([0.0, 0.0]), np.ones(2))), "strictly increasing"),
+        (lambda: BayesLearner(GRID, success_curve=(np.array([0.0, 0.1]), np.ones(3))), "one length"),
+        (lambda: BayesLearner(GRID, success_curve=(np.array([0.0, 0.1]), np.array([0.5, 1.5]))), r"\[0, 1\]"),
         (lambda: PESIConfig(candidate_sampling="thompson", n_candidates=3), "n_candidates must be 2"),
     ],
 )

@@ -33,7 +33,7 @@ import torch
 from scipy.special import logsumexp
 
 from hipref.learners.answer_models import EQUAL_COLUMN, SKIP_COLUMN, AnswerModel, model_family, with_flip
-from hipref.learners.estimates import ESTIMATES, SuccessCurve, read_estimate
+from hipref.learners.estimates import ESTIMATES, SuccessCurve, check_success_curve, read_estimate
 from hipref.learners.queries import QUERY_RULES, choose_pair, pair_table
 from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.teachers.preference import EQUAL, NoLabel, PreferenceQuery, preference_label_vector
@@ -243,6 +243,8 @@ class BayesLearner:
         check_int("seed", seed, 0)
         if self.config.estimate == "expected_success" and success_curve is None:
             raise ValueError("estimate 'expected_success' needs a success_curve (errors, success rates)")
+        if success_curve is not None:
+            check_success_curve(success_curve)
         if self.config.prior == "si" and si_model is None:
             raise ValueError("prior 'si' needs the SI model (si_model)")
         if si_model is not None and si_model.candidates != candidates:

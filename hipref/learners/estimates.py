@@ -44,6 +44,20 @@ Stretches = tuple[np.ndarray, np.ndarray]
 with low == high is a point (`hipref.learners.bayes.PreferencePosterior.stretches`)."""
 
 
+def check_success_curve(success: SuccessCurve) -> None:
+    """Refuse a success curve whose errors are not strictly increasing, whose arrays differ in length, or
+    whose rates lie outside [0, 1]."""
+    errors, rates = (np.asarray(a, dtype=np.float64) for a in success)
+    if errors.ndim != 1 or errors.shape != rates.shape or errors.size < 2:
+        raise ValueError(
+            f"success_curve must be two 1-d arrays of one length >= 2, got {errors.shape} and {rates.shape}"
+        )
+    if not np.all(np.diff(errors) > 0):
+        raise ValueError(f"success_curve's errors must be strictly increasing, got {errors.tolist()}")
+    if not np.all((rates >= 0) & (rates <= 1)):
+        raise ValueError(f"success_curve's rates must lie in [0, 1], got {rates.tolist()}")
+
+
 def read_estimate(
     reading: str,
     cells: np.ndarray,
@@ -64,6 +78,7 @@ def read_estimate(
         return most_within(cells, weights, step, stretches)
     if success is None:
         raise ValueError("estimate 'expected_success' needs a success_curve (errors, success rates)")
+    check_success_curve(success)
     return most_expected(cells, weights, success, stretches)
 
 
