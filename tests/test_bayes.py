@@ -243,6 +243,11 @@ def test_a_cell_between_midpoints_is_its_whole_interval_half_of_it_one_step_away
     assert most_within(cells, weights, GRID.resolution) == pytest.approx(0.6925)
     estimate = most_within(cells, weights, GRID.resolution, stretches)
     assert abs(estimate - 0.7049) <= GRID.resolution  # every truth of the interval within one step
+    # The learner reads its own posterior so.
+    learner = BayesLearner(GRID, BayesConfig(answer_models=(AnswerModel(),)), seed=0)
+    with np.errstate(divide="ignore"):
+        learner.posterior.log_likelihood = np.log(weights)[None, :]
+    assert learner.estimate() == pytest.approx(estimate)
 
 
 def test_expected_success_averages_the_curve_over_each_cells_stretch() -> None:

@@ -75,7 +75,8 @@ class PreferencePosterior:
         self._query_index = 2 * (index // half) + (index % half != 0)
         self.stretches = _stretches(self.cells, half)
         """Per cell, the stretch of Phi its weight stands for (`hipref.learners.estimates.Stretches`): a pair
-        midpoint is a point; the cells between two midpoints share the open interval between them."""
+        midpoint (or an end of the range) is a point; the cells between two midpoints share the open interval
+        between them (with refine 2 there are none, and every cell is a point)."""
         kinds = [m.kind for m in models]
         # Uniform over the kinds, then over each kind's parameters.
         self.log_model_prior = np.array([-np.log(len(set(kinds))) - np.log(kinds.count(k)) for k in kinds])
@@ -182,12 +183,14 @@ class PreferencePosterior:
 
 
 def _stretches(cells: np.ndarray, half: int) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) per cell: every `half`-th cell (a pair midpoint) a point, the `half` - 1 cells between two
-    of them tiling the interval between them, the first and last reaching its ends."""
-    spacing = cells[1] - cells[0]
+    """(low, high) per cell: every `half`-th cell (a pair midpoint or an end of the range) a point, the
+    `half` - 1 cells between two of them tiling the interval between them, the first and last reaching its
+    ends. Each end is a neighbouring cell or the midpoint of two, so consecutive stretches meet exactly."""
     inside = np.arange(cells.size) % half
-    low = np.where(inside == 1, cells - spacing, cells - spacing / 2)
-    high = np.where(inside == half - 1, cells + spacing, cells + spacing / 2)
+    before = np.concatenate([cells[:1], cells[:-1]])
+    after = np.concatenate([cells[1:], cells[-1:]])
+    low = np.where(inside == 1, before, (before + cells) / 2)
+    high = np.where(inside == half - 1, after, (cells + after) / 2)
     return np.where(inside == 0, cells, low), np.where(inside == 0, cells, high)
 
 

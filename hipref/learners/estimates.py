@@ -11,16 +11,18 @@ decision for notebook 12's criterion, an estimate within one step of the truth. 
 environments (8 truths x 5 seeds per domain, none of notebook 12's; information gain, 200 answers), the
 learner told nothing needed more than 1.25 times the answers of the learner told the model under 13 of
 24 settings (per grid, the 12 of notebook 12's claim but the myopic teacher's, where neither gets within
-one step) with the median of the most probable kind, and under 7 with this estimate. Scoring queries on
-every model rather than the heaviest six left 3 of 12 over on one grid, as this estimate alone did, at
-twice the time.
+one step) with the median of the most probable kind, and under 7 with this estimate read as points (below).
+Scoring queries on every model rather than the heaviest six left 3 of 12 over on one grid, as this estimate
+alone did, at twice the time.
 
-A cell's weight stands for a stretch of Phi (`Stretches`): a cell between two pair midpoints stands for the
-whole interval between them, where the flip model's posterior is constant, so a value one step from its
-centre has only half of it within one step. Read as points, the cells let the estimate sit one step from
-the posterior's bulk, gathering a tail on its other side, and miss a truth in the bulk's far half: in
-notebook 12 (full profile) the learner told the stochastic teacher's model needed 130 answers to be within
-one step in 90 % of the wiping environments read so, and 55 read by stretches. On the two grids above the
+A cell's weight stands for a stretch of Phi (`Stretches`): at refine 4 a cell between two pair midpoints
+stands for the whole interval between them (half a step), where the flip model's posterior is constant, so
+a value one step from its centre has only half of it within one step (under the graded models the
+likelihood varies inside the interval, and spreading the weight evenly approximates it). Read as points,
+the cells let the estimate sit one step from the posterior's bulk, gathering a tail on its other side, and
+miss a truth in the bulk's far half: in notebook 12 (full profile) the learner told the stochastic
+teacher's model needed 130 answers to be within one step in 90 % of the wiping environments read so, and
+55 read by stretches. On the two grids above the
 learner told nothing is over 1.25 times the answers of the learner told the model under 6 of 24 settings
 read by stretches.
 """
@@ -68,7 +70,7 @@ def read_estimate(
 ) -> float:
     """The estimate `reading` (one of ESTIMATES) of the posterior `weights` over `cells`; `step` is Phi's
     resolution, `success` the curve 'expected_success' needs, `stretches` what each cell stands for (None:
-    every cell a point)."""
+    every cell a point; 'median' and 'mean' read the cells themselves)."""
     check_choice("reading", reading, ESTIMATES)
     if reading == "median":
         return float(cells[min(int(np.searchsorted(np.cumsum(weights), 0.5)), cells.size - 1)])

@@ -16,7 +16,9 @@ models (`hipref.learners.answer_models`) and picks two candidates of Phi:
 
 Information gain against other ways to choose under a learner told nothing of the teacher, measured as the
 settings where it needs over 1.25 times the answers of the learner told the model (`python -m
-hipref.bench.model_choice --grid wide --episodes 200`: 40 environments per domain, 12 teacher settings):
+hipref.bench.model_choice --grid wide --episodes 200`: 40 environments per domain, 12 teacher settings), all
+with the estimate read as points (before `hipref.learners.estimates` spread each cell over its stretch; read
+so, this rule leaves 2 on that grid):
 
 - information about phi, averaged over the heaviest answer models (this rule): 3 settings;
 - information about the step of Phi that holds phi: 6;
