@@ -15,7 +15,8 @@ each. Nothing is written to disk.
 
 `--family teachers` gives the learner told nothing only the answer models of the benchmark's own seven
 teachers (`teacher_family`) instead of `model_family()`'s 30: every teacher it meets and no other, so what it
-still needs beyond told the model is not the cost of models no teacher follows.
+still needs beyond told the model is not the cost of models no teacher follows (the learner told the kind,
+the same under either family, is then not run).
 """
 
 from __future__ import annotations
@@ -87,7 +88,9 @@ def main() -> None:
     truths, seeds = GRIDS[args.grid]
     family = teacher_family() if args.family == "teachers" else None
     frames: list[pd.DataFrame] = []
-    seconds: dict[str, list[float]] = {"model": [], "kind": [], "nothing": []}
+    # Told the kind, the learner weighs that kind's models whatever the family: run once, with the full one.
+    levels = ("model", "kind", "nothing") if family is None else ("model", "nothing")
+    seconds: dict[str, list[float]] = {level: [] for level in levels}
     for domain, values in truths.items():
         for teacher, noise in TEACHERS:
             for level in seconds:

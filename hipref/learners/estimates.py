@@ -98,10 +98,12 @@ def expected_success(
     """Per cell x, sum_c Pr(c) S(x - phi), S the curve interpolated and zero beyond it, averaged over phi in
     the stretch cell c stands for (None: cells are points)."""
     errors, rates = (np.asarray(a, dtype=np.float64) for a in success)
-    low, high = (cells, cells) if stretches is None else stretches
+    at_points = np.interp(cells[:, None] - cells[None, :], errors, rates, left=0.0, right=0.0)
+    if stretches is None:
+        return np.asarray(at_points @ weights)
+    low, high = stretches
     width = high - low
     spread = width > 0
-    at_points = np.interp(cells[:, None] - cells[None, :], errors, rates, left=0.0, right=0.0)
     # The mean of S(x - phi) over phi in [low, high]: (F(x - low) - F(x - high)) / width, F' = S.
     area = _integral(errors, rates, cells[:, None] - low[None, :]) - _integral(
         errors, rates, cells[:, None] - high[None, :]
