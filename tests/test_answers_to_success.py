@@ -24,7 +24,7 @@ from hipref.experiments.answers_to_success import (
     run_answers,
 )
 from hipref.experiments.si_run import FineTuning, SIRun
-from hipref.learners.answer_models import told
+from hipref.learners.answer_models import model_family, told
 from hipref.learners.pesi import PESIConfig
 from hipref.teachers.models import TeacherModel
 
@@ -265,6 +265,17 @@ def test_a_learner_given_only_the_true_model_answers_as_the_learner_told_it() ->
     weighing = run_answers(cell)
     pd.testing.assert_frame_equal(given.drop(columns="told"), told_cell.drop(columns="told"))
     assert not given["value"].equals(weighing["value"])
+
+def test_a_reader_hears_the_askers_queries_and_answers() -> None:
+    # Reading with the asker's own models gives the asker's rows; reading told the model, the queries the
+    # learner told nothing chose, gives neither whole learner's rows.
+    cell = AnswersCell("wiping", 0.613, 5, "skip", 0.0, "information_gain", "nothing", 8)
+    family, given = model_family(), (told(TeacherModel("skip"), 0.0),)
+    pd.testing.assert_frame_equal(run_answers(cell, family, reader=family), run_answers(cell))
+    read = run_answers(cell, family, reader=given)
+    for whole in (run_answers(cell), run_answers(cell, given)):
+        assert not read["value"].equals(whole["value"])
+
 
 
 def test_the_teachers_family_holds_each_benchmark_teacher_once() -> None:

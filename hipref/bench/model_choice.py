@@ -17,11 +17,15 @@ each. Nothing is written to disk.
 teachers (`teacher_family`) instead of `model_family()`'s 30: every teacher it meets and no other, so what it
 still needs beyond told the model is not the cost of models no teacher follows (the learner told the kind,
 the same under either family, is then not run).
+
+`--split` tells instead where not knowing costs: the learner told nothing reading the answers to the queries
+the learner told the model chooses, and the reverse, each beside the two whole learners (answers to one step).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import time
 
@@ -38,7 +42,7 @@ from hipref.experiments.answers_to_success import (
     run_answers,
 )
 from hipref.experiments.domains import domain_spec
-from hipref.learners.answer_models import AnswerModel, told
+from hipref.learners.answer_models import AnswerModel, hypotheses, told
 from hipref.teachers.models import TeacherModel, picture_floor
 
 STUDY: dict[str, tuple[float, ...]] = {
@@ -84,9 +88,17 @@ def main() -> None:
         default="all",
         help="the answer models told nothing weighs: model_family()'s 30, or the seven teachers' own",
     )
+    parser.add_argument(
+        "--split",
+        action="store_true",
+        help="instead, each learner's queries read by the other's posterior (told the model, told nothing)",
+    )
     args = parser.parse_args()
     truths, seeds = GRIDS[args.grid]
     family = teacher_family() if args.family == "teachers" else None
+    if args.split:
+        print(split_table(truths, seeds, args.episodes, family).to_string(index=False))
+        return
     frames: list[pd.DataFrame] = []
     # Told the kind, the learner weighs that kind's models whatever the family: run once, with the full one.
     levels = ("model", "kind", "nothing") if family is None else ("model", "nothing")
@@ -113,6 +125,36 @@ def main() -> None:
     )
     for level, times in seconds.items():
         print(f"told {level}: {sum(times) / len(times):.2f} s per run of {args.episodes} answers")
+
+
+def split_table(
+    truths: dict[str, tuple[float, ...]],
+    seeds: range,
+    episodes: int,
+    family: tuple[AnswerModel, ...] | None,
+) -> pd.DataFrame:
+    """Per domain and teacher, the answers to one step of the learners told the model and told nothing, and
+    of each one's queries read by the other's posterior: `model_asks_nothing_reads` (what the posterior
+    not told the model makes of the told learner's queries) and `nothing_asks_model_reads`."""
+    frames = []
+    for domain, values in truths.items():
+        for teacher, noise in TEACHERS:
+            given = hypotheses(TeacherModel(teacher), noise, "model")
+            blind = family if family is not None else hypotheses(TeacherModel(teacher), noise, "nothing")
+            pairings = (
+                ("model", "model", given, None),
+                ("nothing", "nothing", blind, None),
+                ("model", "nothing", given, blind),
+                ("nothing", "model", blind, given),
+            )
+            for truth, seed in itertools.product(values, seeds):
+                cell = AnswersCell(domain, truth, seed, teacher, noise, "information_gain", "model", episodes)
+                for asks, reads, models, reader in pairings:
+                    rows = run_answers(cell, models, reader)
+                    frames.append(rows.assign(told=f"{asks}_asks_{reads}_reads"))
+    steps = answers_to_step(pd.concat(frames, ignore_index=True))
+    table = steps.pivot(index=["domain", "teacher", "noise"], columns="told", values="answers")
+    return table.reset_index().rename_axis(columns=None)
 
 
 def teacher_family() -> tuple[AnswerModel, ...]:

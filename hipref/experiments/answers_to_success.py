@@ -97,11 +97,17 @@ class AnswersCell:
         check_range("ground_truth", self.ground_truth, spec.candidates.low, spec.candidates.high)
 
 
-def run_answers(cell: AnswersCell, models: tuple[AnswerModel, ...] | None = None) -> pd.DataFrame:
+def run_answers(
+    cell: AnswersCell,
+    models: tuple[AnswerModel, ...] | None = None,
+    reader: tuple[AnswerModel, ...] | None = None,
+) -> pd.DataFrame:
     """The learner's error after each of `answer_counts` (a sweep cell; under a chosen query rule also the
     error of the same posterior's median, 'median_error'), and at the end the posterior's filter of wrong
     answers against the teacher's record and the probability it gives the true kind. `models` replaces the
-    answer models the learner weighs (`hypotheses` of what it is told, by default)."""
+    answer models the learner weighs (`hypotheses` of what it is told, by default). With `reader`, a second
+    learner weighing those models hears the same queries and answers, and every row is its: what the
+    posterior makes of answers to queries another belief chose."""
     phi = domain_spec(cell.domain).candidates
     teacher_seq, learner_seq, _, _ = run_streams(cell.seed, cell.ground_truth)
     model = TeacherModel(cell.teacher)
@@ -110,15 +116,23 @@ def run_answers(cell: AnswersCell, models: tuple[AnswerModel, ...] | None = None
     )
     if models is None:
         models = hypotheses(model, cell.noise, cell.told)
-    learner = BayesLearner(
+    asker = BayesLearner(
         phi, BayesConfig(query_rule=cell.query_rule, answer_models=models), integer_seed(learner_seq)
     )
+    learner = asker
+    if reader is not None:
+        learner = BayesLearner(
+            phi, BayesConfig(query_rule=cell.query_rule, answer_models=reader), integer_seed(learner_seq)
+        )
     counts = set(answer_counts(cell.episodes))
     rows: list[tuple[int, str, float]] = []
     with one_thread():
         for answered in range(1, cell.episodes + 1):
-            query = learner.ask()
-            learner.tell(query, teacher.answer(query))
+            query = asker.ask()
+            answer = teacher.answer(query)
+            asker.tell(query, answer)
+            if learner is not asker:
+                learner.tell(query, answer)
             if answered in counts:
                 rows.append((answered, "param_error", abs(learner.estimate() - cell.ground_truth)))
                 if cell.query_rule != "uniform":  # the same posterior read by its median: the reading's cost
