@@ -266,16 +266,22 @@ def test_a_learner_given_only_the_true_model_answers_as_the_learner_told_it() ->
     pd.testing.assert_frame_equal(given.drop(columns="told"), told_cell.drop(columns="told"))
     assert not given["value"].equals(weighing["value"])
 
+
 def test_a_reader_hears_the_askers_queries_and_answers() -> None:
     # Reading with the asker's own models gives the asker's rows; reading told the model, the queries the
-    # learner told nothing chose, gives neither whole learner's rows.
-    cell = AnswersCell("wiping", 0.613, 5, "skip", 0.0, "information_gain", "nothing", 8)
-    family, given = model_family(), (told(TeacherModel("skip"), 0.0),)
-    pd.testing.assert_frame_equal(run_answers(cell, family, reader=family), run_answers(cell))
+    # learner told nothing chose, gives neither whole learner's errors, and the final rows are the reader's.
+    cell = AnswersCell("wiping", 0.613, 5, "mistake", 0.2, "information_gain", "nothing", 12)
+    family, given = model_family(), (told(TeacherModel("mistake"), 0.2),)
+    asker = run_answers(cell)
+    pd.testing.assert_frame_equal(run_answers(cell, family, reader=family), asker)
     read = run_answers(cell, family, reader=given)
-    for whole in (run_answers(cell), run_answers(cell, given)):
-        assert not read["value"].equals(whole["value"])
-
+    for whole in (asker, run_answers(cell, given)):
+        errors = [rows.loc[rows.metric == "param_error", "value"].to_numpy() for rows in (read, whole)]
+        assert not np.array_equal(*errors)
+    read_kind, asker_kind = (
+        r.set_index("metric").loc["true_model_probability", "value"] for r in (read, asker)
+    )
+    assert read_kind == pytest.approx(1.0) and asker_kind < 0.99
 
 
 def test_the_teachers_family_holds_each_benchmark_teacher_once() -> None:

@@ -136,7 +136,7 @@ def split_table(
     """Per domain and teacher, the answers to one step of the learners told the model and told nothing, and
     of each one's queries read by the other's posterior: `model_asks_nothing_reads` (what the posterior
     not told the model makes of the told learner's queries) and `nothing_asks_model_reads`."""
-    frames = []
+    frames: list[pd.DataFrame] = []
     for domain, values in truths.items():
         for teacher, noise in TEACHERS:
             given = hypotheses(TeacherModel(teacher), noise, "model")
@@ -148,6 +148,7 @@ def split_table(
                 ("nothing", "model", blind, given),
             )
             for truth, seed in itertools.product(values, seeds):
+                # The cell's `told` is unused: each pairing gives its asker's and reader's models.
                 cell = AnswersCell(domain, truth, seed, teacher, noise, "information_gain", "model", episodes)
                 for asks, reads, models, reader in pairings:
                     rows = run_answers(cell, models, reader)

@@ -106,8 +106,9 @@ def run_answers(
     error of the same posterior's median, 'median_error'), and at the end the posterior's filter of wrong
     answers against the teacher's record and the probability it gives the true kind. `models` replaces the
     answer models the learner weighs (`hypotheses` of what it is told, by default). With `reader`, a second
-    learner weighing those models hears the same queries and answers, and every row is its: what the
-    posterior makes of answers to queries another belief chose."""
+    learner weighing the answer models `reader` hears the same queries and answers without asking, and
+    every row is its (what that posterior makes of answers to queries another belief chose), though the
+    rows keep the cell's `told`."""
     phi = domain_spec(cell.domain).candidates
     teacher_seq, learner_seq, _, _ = run_streams(cell.seed, cell.ground_truth)
     model = TeacherModel(cell.teacher)
