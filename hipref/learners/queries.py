@@ -45,7 +45,12 @@ teacher left out). Measured the same way:
   pushing);
 - information about phi under the kind of highest posterior alone: 7 on the study grid, slower under the
   stochastic teacher (130 answers in wiping and 180 in pushing, against told the model's 55 and 85 and this
-  rule's 85 and 140).
+  rule's 85 and 140);
+- two answers ahead, for the first query only (the information about phi of its answer and of the best second
+  query after each answer, all 30 models): the widest pair or nearly, as this rule asks, (0.50, 0.90) m in
+  wiping and (8.25, 20.0) kg in pushing (tied with (8.0, 19.75)). The pair the learner told the skip teacher
+  asks first in wiping, (0.61, 0.65), is worth 0.56 nats over two answers against 0.67: no rule maximising
+  the expected information of one or two answers asks it.
 
 Ties (many pairs share a midpoint) are broken uniformly with the learner's rng. The likelihood of every
 pair at every cell is computed once per (candidates, cells, model) and kept (`pair_table`), so a choice
