@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hipref.bench.model_choice import TEACHERS, teacher_family
+from hipref.bench.model_choice import TEACHERS, split_table, teacher_family
 from hipref.experiments.answers_tables import (
     answers_to_step,
     efficiency,
@@ -282,6 +282,16 @@ def test_a_reader_hears_the_askers_queries_and_answers() -> None:
         r.set_index("metric").loc["true_model_probability", "value"] for r in (read, asker)
     )
     assert read_kind == pytest.approx(1.0) and asker_kind < 0.99
+
+
+def test_the_split_table_pairs_each_asker_with_each_reader() -> None:
+    table = split_table({"wiping": (0.613,)}, range(5, 6), 6, None).set_index("teacher")
+    pairings = {f"{a}_asks_{r}_reads" for a in ("model", "nothing") for r in ("model", "nothing")}
+    assert pairings <= set(table.columns) and len(table) == len(TEACHERS)
+    for level in ("model", "nothing"):
+        whole = run_answers(AnswersCell("wiping", 0.613, 5, "skip", 0.0, "information_gain", level, 6))
+        steps = answers_to_step(whole)
+        assert table.loc["skip", f"{level}_asks_{level}_reads"] == steps["answers"].item()
 
 
 def test_the_teachers_family_holds_each_benchmark_teacher_once() -> None:
