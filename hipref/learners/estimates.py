@@ -16,15 +16,14 @@ Scoring queries on every model rather than the heaviest six left 3 of 12 over on
 alone did, at twice the time.
 
 A cell's weight stands for a stretch of Phi (`Stretches`): at refine 4 a cell between two pair midpoints
-stands for the whole interval between them (half a step), where the flip model's posterior is constant, so
-a value one step from its centre has only half of it within one step (under the graded models the
-likelihood varies inside the interval, and spreading the weight evenly approximates it). Read as points,
-the cells let the estimate sit one step from the posterior's bulk, gathering a tail on its other side, and
-miss a truth in the bulk's far half: in notebook 12 (full profile) the learner told the stochastic
-teacher's model needed 130 answers to be within one step in 90 % of the wiping environments read so, and
-55 read by stretches. On the two grids above the
-learner told nothing is over 1.25 times the answers of the learner told the model under 6 of 24 settings
-read by stretches.
+stands for the whole interval between them (half a step), where the flip model's posterior is constant, so a
+value one step from its centre has only half of it within one step (under the graded models the likelihood
+varies inside the interval, and spreading the weight evenly approximates it). Read as points, the cells let
+the estimate sit one step from the posterior's bulk, gathering a tail on its other side, and miss a truth in
+the bulk's far half: in notebook 12 (full profile) the learner told the stochastic teacher's model needed 130
+answers to be within one step in 90 % of the wiping environments read so, and 55 read by stretches. On the two
+grids above the learner told nothing is over 1.25 times the answers of the learner told the model under 6 of
+24 settings read by stretches.
 """
 
 from __future__ import annotations
