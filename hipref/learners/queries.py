@@ -46,6 +46,13 @@ teacher left out). Measured the same way:
 - information about phi under the kind of highest posterior alone: 7 on the study grid, slower under the
   stochastic teacher (130 answers in wiping and 180 in pushing, against told the model's 55 and 85 and this
   rule's 85 and 140);
+- only the pairs whose midpoint lies within the belief's central 98 %, not 99.8 % (`_worth_asking`): 3 on the
+  wide grid (the paper's teacher at 20 % flips in wiping down to 20 answers against told the model's 20, the
+  distance teacher in wiping up to 60 against 45) and 7 on the study grid, as this rule. Under bisection every
+  model predicts each answer at about 1/2, so the answers hardly tell the models apart: a teacher flipping
+  20 % leaves weight on flip rates up to 0.45 and on the myopic teacher's models, whose wide posteriors draw
+  the pairs into their tails (weighing the flip and myopic models alone, (10.0, 12.0) kg asked of a truth at
+  18 kg in pushing);
 - two answers ahead, for the first query only (the information about phi of its answer and of the best second
   query after each answer, all 30 models): the widest pair or nearly, as this rule asks, (0.50, 0.90) m in
   wiping and (8.25, 20.0) kg in pushing (tied with (8.0, 19.75)). The pair the learner told the skip teacher
