@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hipref.bench.model_choice import TEACHERS, split_table, teacher_family
+from hipref.bench.model_choice import TEACHERS, block_table, split_table, teacher_family
 from hipref.experiments.answers_tables import (
     answers_to_step,
     efficiency,
@@ -292,6 +292,25 @@ def test_the_split_table_pairs_each_asker_with_each_reader() -> None:
         whole = run_answers(AnswersCell("wiping", 0.613, 5, "skip", 0.0, "information_gain", level, 6))
         steps = answers_to_step(whole)
         assert table.loc["skip", f"{level}_asks_{level}_reads"] == steps["answers"].item()
+
+
+def test_the_block_table_runs_the_next_seeds_and_counts_the_ratios_over_the_bar() -> None:
+    table = block_table({"wiping": (0.613,)}, range(5, 6), 12, 2, None).set_index(["teacher", "noise"])
+    assert "myopic" not in table.index.get_level_values("teacher") and len(table) == len(TEACHERS) - 1
+    runs = []
+    for block, seed in enumerate((5, 6)):  # block 1 is the seed after the grid's
+        cell = AnswersCell("wiping", 0.613, seed, "mistake", 0.2, "information_gain", "model", 12)
+        runs.append(run_answers(cell))
+        assert table.loc[("mistake", 0.2), "model"][block] == answers_to_step(runs[-1])["answers"].item()
+    pooled = answers_to_step(pd.concat(runs, ignore_index=True))["answers"].item()
+    assert table.loc[("mistake", 0.2), "model_pooled"] == pooled
+    for _, row in table.iterrows():
+        model, nothing = np.array(row["model"]), np.array(row["nothing"])
+        if not np.isfinite([*model, *nothing]).all():  # never within one step in 12 answers
+            continue
+        assert row["model_over"] == np.mean([model[0] / model[1] > 1.25, model[1] / model[0] > 1.25])
+        assert row["nothing_over"] == np.mean(nothing / model > 1.25)
+    assert table.loc[("mistake", 0.2), "model_over"] == 0.5  # 7 against 9 answers: 9 / 7 is over 1.25
 
 
 def test_the_teachers_family_holds_each_benchmark_teacher_once() -> None:

@@ -20,6 +20,13 @@ the same under either family, is then not run).
 
 `--split` tells instead where not knowing costs: the learner told nothing reading the answers to the queries
 the learner told the model chooses, and the reverse, each beside the two whole learners (answers to one step).
+
+`--blocks K` tells how far the ratio moves with the environments drawn: both learners on K blocks of the
+grid's truths, each block with as many seeds as the grid, the next seeds after the block before (block 0 is
+the grid's own). Per setting it prints each block's answers to one step of each learner, the share of ordered
+pairs of two blocks whose told the model's answers differ by a ratio over 1.25 (the bar applied to a learner
+against itself), the share of blocks where told nothing's over told the model's is, and each learner's answers
+to one step over all the blocks' environments at once.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ import itertools
 import math
 import time
 
+import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
@@ -38,6 +46,7 @@ from hipref.experiments.answers_tables import (
     told_against_chosen,
 )
 from hipref.experiments.answers_to_success import (
+    MODEL_CHOICE_BOUND,
     AnswersCell,
     run_answers,
 )
@@ -89,6 +98,12 @@ def main() -> None:
         help="the answer models told nothing weighs: model_family()'s 30, or the seven teachers' own",
     )
     parser.add_argument(
+        "--blocks",
+        type=int,
+        default=0,
+        help="instead, both learners on this many blocks of the grid's seeds (at least 2)",
+    )
+    parser.add_argument(
         "--split",
         action="store_true",
         help="instead, each learner's queries read by the other's posterior (told the model, told nothing)",
@@ -98,6 +113,12 @@ def main() -> None:
     family = teacher_family() if args.family == "teachers" else None
     if args.split:
         print(split_table(truths, seeds, args.episodes, family).to_string(index=False))
+        return
+    if args.blocks:
+        if args.blocks < 2:
+            parser.error(f"--blocks must be at least 2, got {args.blocks}")
+        table = block_table(truths, seeds, args.episodes, args.blocks, family)
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
         return
     frames: list[pd.DataFrame] = []
     # Told the kind, the learner weighs that kind's models whatever the family: run once, with the full one.
@@ -156,6 +177,53 @@ def split_table(
     steps = answers_to_step(pd.concat(frames, ignore_index=True))
     table = steps.pivot(index=["domain", "teacher", "noise"], columns="told", values="answers")
     return table.reset_index().rename_axis(columns=None)
+
+
+def block_table(
+    truths: dict[str, tuple[float, ...]],
+    seeds: range,
+    episodes: int,
+    blocks: int,
+    family: tuple[AnswerModel, ...] | None,
+) -> pd.DataFrame:
+    """Per domain and teacher that the told learner brings within one step, the answers to one step of the
+    learners told the model and told nothing on each of `blocks` blocks of environments (`model`, `nothing`:
+    one per block; block b holds `truths` x the len(seeds) seeds from seeds.start + b len(seeds)),
+    `model_over`: the share of ordered pairs of distinct blocks (i, j) with model_i / model_j over
+    MODEL_CHOICE_BOUND, `nothing_over`: the share of blocks b with nothing_b / model_b over it, and
+    `model_pooled`, `nothing_pooled`: the answers to one step over all the blocks' environments at once."""
+    out = []
+    for domain, values in truths.items():
+        for teacher, noise in TEACHERS:
+            if teacher == "myopic":  # neither learner gets within one step
+                continue
+            answers: dict[str, list[float]] = {"model": [], "nothing": []}
+            pooled: dict[str, float] = {}
+            for told_, per_block in answers.items():
+                models = family if told_ == "nothing" else None
+                every: list[pd.DataFrame] = []
+                for block in range(blocks):
+                    start = seeds.start + block * len(seeds)
+                    frames = []
+                    for truth, seed in itertools.product(values, range(start, start + len(seeds))):
+                        rule = "information_gain"
+                        cell = AnswersCell(domain, truth, seed, teacher, noise, rule, told_, episodes)
+                        frames.append(run_answers(cell, models))
+                    steps = answers_to_step(pd.concat(frames, ignore_index=True))
+                    per_block.append(float(steps["answers"].iloc[0]))
+                    every += frames
+                pooled[told_] = float(answers_to_step(pd.concat(every, ignore_index=True))["answers"].iloc[0])
+            # A block never within one step counts as needing more answers than any that is (inf).
+            model, nothing = (np.nan_to_num(answers[t], nan=np.inf) for t in ("model", "nothing"))
+            pairs = [(i, j) for i in range(blocks) for j in range(blocks) if i != j]
+            with np.errstate(invalid="ignore"):  # inf / inf: neither within one step, not over
+                model_over = np.mean([model[i] / model[j] > MODEL_CHOICE_BOUND for i, j in pairs])
+                nothing_over = np.mean(nothing / model > MODEL_CHOICE_BOUND)
+            row = (answers["model"], answers["nothing"], float(model_over), float(nothing_over))
+            out.append((domain, teacher, noise, *row, pooled["model"], pooled["nothing"]))
+    columns = ["domain", "teacher", "noise", "model", "nothing", "model_over", "nothing_over"]
+    columns += ["model_pooled", "nothing_pooled"]
+    return pd.DataFrame(out, columns=columns)
 
 
 def teacher_family() -> tuple[AnswerModel, ...]:
