@@ -97,13 +97,14 @@ def main() -> None:
         default="all",
         help="the answer models told nothing weighs: model_family()'s 30, or the seven teachers' own",
     )
-    parser.add_argument(
+    instead = parser.add_mutually_exclusive_group()
+    instead.add_argument(
         "--blocks",
         type=int,
         default=0,
         help="instead, both learners on this many blocks of the grid's seeds (at least 2)",
     )
-    parser.add_argument(
+    instead.add_argument(
         "--split",
         action="store_true",
         help="instead, each learner's queries read by the other's posterior (told the model, told nothing)",
