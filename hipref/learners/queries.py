@@ -48,7 +48,9 @@ teacher left out). Measured the same way:
   rule's 85 and 140);
 - only the pairs whose midpoint lies within the belief's central 98 %, not 99.8 % (`_worth_asking`): 3 on the
   wide grid (the paper's teacher at 20 % flips in wiping down to 20 answers against told the model's 20, the
-  distance teacher in wiping up to 60 against 45) and 7 on the study grid, as this rule. Under bisection every
+  distance teacher in wiping up to 60 against 45) and 7 on the study grid, as this rule; on notebook 12's
+  pushing truths with ten blocks of seeds (`--blocks 10`, 100 environments at once) 3 of 6, as this rule (the
+  paper's teacher at 20 % flips: 31 answers against told the model's 23, this rule 33). Under bisection every
   model predicts each answer at about 1/2, so the answers hardly tell the models apart: a teacher flipping
   20 % leaves weight on flip rates up to 0.45 and on the myopic teacher's models, whose wide posteriors draw
   the pairs into their tails (weighing the flip and myopic models alone, (10.0, 12.0) kg asked of a truth at
