@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hipref.bench.model_choice import TEACHERS, block_table, split_table, teacher_family
+from hipref.bench.model_choice import TEACHERS, block_table, share_over, split_table, teacher_family
 from hipref.experiments.answers_tables import (
     answers_to_step,
     efficiency,
@@ -295,22 +295,31 @@ def test_the_split_table_pairs_each_asker_with_each_reader() -> None:
 
 
 def test_the_block_table_runs_the_next_seeds_and_counts_the_ratios_over_the_bar() -> None:
-    table = block_table({"wiping": (0.613,)}, range(5, 6), 12, 2, None).set_index(["teacher", "noise"])
+    table = block_table({"wiping": (0.613,)}, range(5, 7), 20, 2, None).set_index(["teacher", "noise"])
     assert "myopic" not in table.index.get_level_values("teacher") and len(table) == len(TEACHERS) - 1
-    runs = []
-    for block, seed in enumerate((5, 6)):  # block 1 is the seed after the grid's
-        cell = AnswersCell("wiping", 0.613, seed, "mistake", 0.2, "information_gain", "model", 12)
-        runs.append(run_answers(cell))
-        assert table.loc[("mistake", 0.2), "model"][block] == answers_to_step(runs[-1])["answers"].item()
-    pooled = answers_to_step(pd.concat(runs, ignore_index=True))["answers"].item()
-    assert table.loc[("mistake", 0.2), "model_pooled"] == pooled
-    for _, row in table.iterrows():
-        model, nothing = np.array(row["model"]), np.array(row["nothing"])
-        if not np.isfinite([*model, *nothing]).all():  # never within one step in 12 answers
-            continue
-        assert row["model_over"] == np.mean([model[0] / model[1] > 1.25, model[1] / model[0] > 1.25])
-        assert row["nothing_over"] == np.mean(nothing / model > 1.25)
-    assert table.loc[("mistake", 0.2), "model_over"] == 0.5  # 7 against 9 answers: 9 / 7 is over 1.25
+    runs = {}
+    for seed in (5, 6, 7, 8):  # block 0 the grid's two seeds, block 1 the next two
+        cell = AnswersCell("wiping", 0.613, seed, "mistake", 0.2, "information_gain", "model", 20)
+        runs[seed] = run_answers(cell)
+    row = table.loc[("mistake", 0.2)]
+    for block, seeds in enumerate(((5, 6), (7, 8))):
+        rows = pd.concat([runs[seed] for seed in seeds], ignore_index=True)
+        assert row["model"][block] == answers_to_step(rows)["answers"].item()
+    assert row["model"] == [14.0, 17.0]
+    assert (
+        row["model_pooled"] == answers_to_step(pd.concat(runs.values(), ignore_index=True))["answers"].item()
+    )
+    # Told nothing needs 18 answers (over 1.25 x 14) on block 0 and never gets there on block 1.
+    assert np.isnan(row["nothing"][1]) and row["nothing_over"] == 1.0 and row["model_over"] == 0.0
+    # Blocks where neither learner gets within one step are left out of a share.
+    stochastic = table.loc[("stochastic", 0.0)]
+    assert np.isnan(stochastic["model_over"]) and stochastic["nothing_over"] == 0.0
+
+
+def test_a_count_that_never_gets_there_is_over_any_that_does() -> None:
+    nan = float("nan")
+    assert share_over([(nan, 3.0), (3.0, nan), (nan, nan), (5.0, 4.0), (6.0, 4.0)]) == 0.5
+    assert np.isnan(share_over([(nan, nan)]))
 
 
 def test_the_teachers_family_holds_each_benchmark_teacher_once() -> None:

@@ -24,9 +24,9 @@ the learner told the model chooses, and the reverse, each beside the two whole l
 `--blocks K` tells how far the ratio moves with the environments drawn: both learners on K blocks of the
 grid's truths, each block with as many seeds as the grid, the next seeds after the block before (block 0 is
 the grid's own). Per setting it prints each block's answers to one step of each learner, the share of ordered
-pairs of two blocks whose told the model's answers differ by a ratio over 1.25 (the bar applied to a learner
-against itself), the share of blocks where told nothing's over told the model's is, and each learner's answers
-to one step over all the blocks' environments at once.
+pairs of two blocks (i, j) where told the model needs over 1.25 times as many answers on i as on j (the bar
+applied to a learner against itself), the share of blocks where told nothing needs over 1.25 times told the
+model's answers, and each learner's answers to one step over all the blocks' environments at once.
 """
 
 from __future__ import annotations
@@ -101,7 +101,6 @@ def main() -> None:
     instead.add_argument(
         "--blocks",
         type=int,
-        default=0,
         help="instead, both learners on this many blocks of the grid's seeds (at least 2)",
     )
     instead.add_argument(
@@ -115,7 +114,7 @@ def main() -> None:
     if args.split:
         print(split_table(truths, seeds, args.episodes, family).to_string(index=False))
         return
-    if args.blocks:
+    if args.blocks is not None:
         if args.blocks < 2:
             parser.error(f"--blocks must be at least 2, got {args.blocks}")
         table = block_table(truths, seeds, args.episodes, args.blocks, family)
@@ -189,10 +188,13 @@ def block_table(
 ) -> pd.DataFrame:
     """Per domain and teacher that the told learner brings within one step, the answers to one step of the
     learners told the model and told nothing on each of `blocks` blocks of environments (`model`, `nothing`:
-    one per block; block b holds `truths` x the len(seeds) seeds from seeds.start + b len(seeds)),
-    `model_over`: the share of ordered pairs of distinct blocks (i, j) with model_i / model_j over
-    MODEL_CHOICE_BOUND, `nothing_over`: the share of blocks b with nothing_b / model_b over it, and
-    `model_pooled`, `nothing_pooled`: the answers to one step over all the blocks' environments at once."""
+    one per block, NaN where never; block b holds `truths` x the len(seeds) seeds from seeds.start +
+    b len(seeds)), `model_over`: the share of ordered pairs of distinct blocks (i, j) with model_i over
+    MODEL_CHOICE_BOUND times model_j, `nothing_over`: the share of blocks b with nothing_b over it times
+    model_b, and `model_pooled`, `nothing_pooled`: the answers to one step over all the blocks' environments
+    at once. A count that never gets within one step is over any that does; pairs where neither does are
+    left out of a share (`share_over`)."""
+    rule = "information_gain"
     out = []
     for domain, values in truths.items():
         for teacher, noise in TEACHERS:
@@ -200,31 +202,37 @@ def block_table(
                 continue
             answers: dict[str, list[float]] = {"model": [], "nothing": []}
             pooled: dict[str, float] = {}
-            for told_, per_block in answers.items():
-                models = family if told_ == "nothing" else None
+            for level, per_block in answers.items():
+                models = family if level == "nothing" else None
                 every: list[pd.DataFrame] = []
                 for block in range(blocks):
                     start = seeds.start + block * len(seeds)
                     frames = []
                     for truth, seed in itertools.product(values, range(start, start + len(seeds))):
-                        rule = "information_gain"
-                        cell = AnswersCell(domain, truth, seed, teacher, noise, rule, told_, episodes)
+                        cell = AnswersCell(domain, truth, seed, teacher, noise, rule, level, episodes)
                         frames.append(run_answers(cell, models))
                     steps = answers_to_step(pd.concat(frames, ignore_index=True))
                     per_block.append(float(steps["answers"].iloc[0]))
                     every += frames
-                pooled[told_] = float(answers_to_step(pd.concat(every, ignore_index=True))["answers"].iloc[0])
-            # A block never within one step counts as needing more answers than any that is (inf).
-            model, nothing = (np.nan_to_num(answers[t], nan=np.inf) for t in ("model", "nothing"))
-            pairs = [(i, j) for i in range(blocks) for j in range(blocks) if i != j]
-            with np.errstate(invalid="ignore"):  # inf / inf: neither within one step, not over
-                model_over = np.mean([model[i] / model[j] > MODEL_CHOICE_BOUND for i, j in pairs])
-                nothing_over = np.mean(nothing / model > MODEL_CHOICE_BOUND)
-            row = (answers["model"], answers["nothing"], float(model_over), float(nothing_over))
+                pooled[level] = float(answers_to_step(pd.concat(every, ignore_index=True))["answers"].iloc[0])
+            model, nothing = answers["model"], answers["nothing"]
+            pairs = [(model[i], model[j]) for i in range(blocks) for j in range(blocks) if i != j]
+            row = (model, nothing, share_over(pairs), share_over(list(zip(nothing, model, strict=True))))
             out.append((domain, teacher, noise, *row, pooled["model"], pooled["nothing"]))
     columns = ["domain", "teacher", "noise", "model", "nothing", "model_over", "nothing_over"]
     columns += ["model_pooled", "nothing_pooled"]
     return pd.DataFrame(out, columns=columns)
+
+
+def share_over(pairs: list[tuple[float, float]]) -> float:
+    """The share of pairs (a, b) of answers to one step (NaN: never) with a over MODEL_CHOICE_BOUND times b;
+    a NaN is over any count, and pairs of two NaN are left out (NaN when every pair is)."""
+    decided = [(a, b) for a, b in pairs if not (np.isnan(a) and np.isnan(b))]
+    if not decided:
+        return np.nan
+    return float(
+        np.mean([np.isnan(a) or (not np.isnan(b) and a > MODEL_CHOICE_BOUND * b) for a, b in decided])
+    )
 
 
 def teacher_family() -> tuple[AnswerModel, ...]:
