@@ -211,10 +211,9 @@ def block_table(
                     for truth, seed in itertools.product(values, range(start, start + len(seeds))):
                         cell = AnswersCell(domain, truth, seed, teacher, noise, rule, level, episodes)
                         frames.append(run_answers(cell, models))
-                    steps = answers_to_step(pd.concat(frames, ignore_index=True))
-                    per_block.append(float(steps["answers"].iloc[0]))
+                    per_block.append(steps_of(frames))
                     every += frames
-                pooled[level] = float(answers_to_step(pd.concat(every, ignore_index=True))["answers"].iloc[0])
+                pooled[level] = steps_of(every)
             model, nothing = answers["model"], answers["nothing"]
             pairs = [(model[i], model[j]) for i in range(blocks) for j in range(blocks) if i != j]
             row = (model, nothing, share_over(pairs), share_over(list(zip(nothing, model, strict=True))))
@@ -222,6 +221,11 @@ def block_table(
     columns = ["domain", "teacher", "noise", "model", "nothing", "model_over", "nothing_over"]
     columns += ["model_pooled", "nothing_pooled"]
     return pd.DataFrame(out, columns=columns)
+
+
+def steps_of(frames: list[pd.DataFrame]) -> float:
+    """The answers to one step (`answers_to_step`) of one setting's runs, NaN if never."""
+    return float(answers_to_step(pd.concat(frames, ignore_index=True))["answers"].iloc[0])
 
 
 def share_over(pairs: list[tuple[float, float]]) -> float:
