@@ -42,7 +42,13 @@ teacher left out). Measured the same way:
   19). On notebook 12's truths with ten blocks of seeds (`--blocks 10`, 100 environments per domain at once)
   it is over 1.25 in 4 of 12 where this rule is in 6: the stochastic teacher comes within (80 answers against
   65 in wiping, 100 against 85 in pushing), the equal teacher in pushing goes further (5 against 3), and the
-  benchmark ran twice as long;
+  benchmark ran twice as long. Notebook 12's 180 runs told nothing at the full profile take 206 s of work
+  under it against 122 s under this rule (timed as `python -m hipref.bench.answers_time` times them): about
+  40 s more of the notebook's 162 s on two workers, over its 3 minutes. Kept to the heaviest models spanning
+  at most six rules (tables; the flip rates of one rule share theirs, `_mixed`), which costs what this rule
+  does, it is over 1.25 in 5 of 12 on the same environments (200 answers each): the skip and equal teachers in
+  wiping (5 and 4 answers against 3), and in pushing the paper's teacher at 20 % flips (33 against 23), the
+  stochastic teacher (110 against 85) and the equal teacher (4 against 3);
 - each model's information about phi given that model, weighed by the model's posterior, over all 30: 2 on
   the wide grid (the skip teacher, 8 answers in each domain against told the model's 4 in wiping and 5 in
   pushing);
