@@ -116,12 +116,19 @@ lab: install
 
 # Participant mode: notebook 09's participant cells served with Voila (hipref/teach/participant.py); the
 # conditions' query rules in the order the participant meets them, catch trials every CATCH_EVERY queries.
+# The values reach the command through the environment, so an id is never read as shell code.
 PARTICIPANT ?=
 CONDITIONS ?= uniform information_gain
 CATCH_EVERY ?= 4
+PORT ?= 8866
+teach: export PARTICIPANT := $(PARTICIPANT)
+teach: export CONDITIONS := $(CONDITIONS)
+teach: export CATCH_EVERY := $(CATCH_EVERY)
+teach: export PORT := $(PORT)
 teach: install
-	@test -n "$(PARTICIPANT)" || { echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
-	$(PY) -m hipref.teach.participant $(PARTICIPANT) --conditions $(CONDITIONS) --catch-every $(CATCH_EVERY)
+	@test -n "$$PARTICIPANT" || { echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
+	$(PY) -m hipref.teach.participant "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
+		--port "$$PORT"
 
 bench: install
 	$(PY) -m hipref.bench.physics

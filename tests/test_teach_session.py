@@ -7,6 +7,7 @@ import itertools
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
@@ -33,6 +34,7 @@ from hipref.teach.config import TeachConfig
 from hipref.teach.dataset import read_sessions
 from hipref.teach.feedback import FeedbackTeaching
 from hipref.teach.participant import ParticipantApp
+from hipref.teach.participant import main as participant_main
 from hipref.teach.preferences import PreferenceTeaching, catch_pair
 from hipref.teach.recorded import RecordedPreferenceTeacher, replay, summary
 from hipref.teach.session import AnswerRefused, SessionFile, SessionLocked, SessionUnwritable
@@ -566,6 +568,59 @@ def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(r
     again = ParticipantApp(config, render=False)
     again._start_condition(0)
     assert "Thank you" in again.widget.children[0].value
+
+
+def test_a_participant_who_comes_back_skips_the_practice_and_keeps_its_answer(results):
+    config = TeachConfig(**{**SMALL, "preference_queries": 1, "catch_every": 2}, participant="P2")
+    first = ParticipantApp(config, render=False)
+    first.widget.children[1].click()
+    assert first.practice is not None and first.practice.teaching.current is not None
+    first.practice.press_as_scripted("left")
+    practice = results / "sessions" / "practice" / "participant_P2_practice.jsonl"
+    kept = practice.read_text()
+    # The window closed after the practice; the participant comes back: straight to the first part.
+    again = ParticipantApp(config, render=False)
+    again.widget.children[1].click()
+    assert "Part 1 of 1" in again.widget.children[0].value and again.practice is None
+    assert practice.read_text() == kept
+    again.apps[0].teaching.close()
+
+
+def test_a_start_button_acts_once_and_says_why_when_the_session_is_held(results, monkeypatch):
+    config = TeachConfig(**{**SMALL, "preference_queries": 1, "catch_every": 2}, participant="P3")
+    app = ParticipantApp(config, render=False)
+    held = SessionLocked("participant_P3_practice.jsonl is open in another live session (pid 1 on host h)")
+    calls = []
+
+    def start() -> None:
+        calls.append(len(calls))
+        if len(calls) == 1:
+            raise held
+
+    monkeypatch.setattr(app, "_start_practice", start)
+    app._screen("instructions", "Start the practice pair", app._start_practice)
+    button, status = app.widget.children[1:]
+    button.click()  # the session is held by a window not yet closed: said, and the button works again
+    assert "still open in an earlier window" in status.value and "pid 1 on host h" in status.value
+    assert not button.disabled
+    button.click()
+    button.click()  # a second press while the next screen is prepared: ignored
+    assert calls == [0, 1] and button.disabled
+
+
+def test_make_teach_refuses_a_bad_id_or_a_port_in_use_in_one_line(capsys):
+    with pytest.raises(SystemExit) as stopped:
+        participant_main(["x/y"])
+    assert stopped.value.code == 2
+    assert "participant must be 1-40 letters, digits, - or _" in capsys.readouterr().err
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        port = server.getsockname()[1]
+        with pytest.raises(SystemExit) as stopped:
+            participant_main(["P4", "--port", str(port)])
+    assert stopped.value.code == 2
+    assert f"port {port} is in use" in capsys.readouterr().err
 
 
 def test_conditions_without_a_participant_are_refused():

@@ -84,6 +84,11 @@ def main() -> None:
     args = parser.parse_args()
     parts = ("task", "answers") if args.part == "both" else ("answers",)
     table = time_parts(notebook_config(args.profile), parts)
+    print(
+        f"notebook 12 at the {args.profile} profile: each kind of run's runs and their seconds, one after "
+        "another in this process (its start-up and imports not counted); 'setting': the flip rate of a "
+        "task run, the answers of an answers run"
+    )
     print(table.to_string(index=False, float_format=lambda v: f"{v:.1f}"))
     for part, seconds in table.groupby("part", sort=False)["seconds"].sum().items():
         print(f"{part}: {seconds:.1f} s")

@@ -13,7 +13,9 @@ stopped: finished conditions are skipped.
 
 (`make teach PARTICIPANT=ID`) writes the participant's view of notebook 09, its parameters cell set for
 the participant and only the cells tagged `participant` kept, to a temporary folder, and serves it with
-Voila (code cells hidden) on http://127.0.0.1:PORT until interrupted.
+Voila (code cells hidden) on http://127.0.0.1:PORT until interrupted (Ctrl-C or a kill); a port already in
+use is refused. A page's kernel is shut down a minute after its window closes, so a participant who closes
+the window comes back to the same server.
 """
 
 from __future__ import annotations
@@ -21,7 +23,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import html
 import json
+import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -38,7 +43,7 @@ from hipref.results import repo_root, results_dir
 from hipref.teach.app import PreferenceApp
 from hipref.teach.config import TeachConfig
 from hipref.teach.preferences import PreferenceTeaching
-from hipref.teach.session import SessionFile
+from hipref.teach.session import SessionFile, SessionLocked, SessionUnwritable
 
 TAG = "participant"
 """The tag of notebook 09's cells a participant's view keeps (besides the parameters cell)."""
@@ -113,15 +118,34 @@ class ParticipantApp:
         self._screen(text, "Start the practice pair", self._start_practice)
 
     def _screen(self, text: str, button: str, then: Callable[[], None]) -> None:
+        """`text` and a button that runs `then` once: pressed, it is disabled and a line says the next
+        screen is being prepared (a few seconds, more on a first visit); presses queued meanwhile are
+        ignored. Where the session cannot be opened, the line says why and the button can be pressed again."""
         go = widgets.Button(description=button, button_style="primary")
         go.layout.width = "auto"
-        go.on_click(lambda _: then())
-        self.widget.children = [widgets.HTML(text), go]
+        status = widgets.HTML()
+
+        def pressed(_: widgets.Button) -> None:
+            if go.disabled:
+                return
+            go.disabled = True
+            status.value = "<p><i>Preparing the next pair of clips: this takes a few seconds.</i></p>"
+            try:
+                then()
+            except (SessionLocked, SessionUnwritable) as error:
+                status.value = f"<p><b>{html.escape(_why_not(error))}</b></p>"
+                go.disabled = False
+
+        go.on_click(pressed)
+        self.widget.children = [widgets.HTML(text), go, status]
 
     def _start_practice(self) -> None:
         config = practice_config(self.config)
-        folder = results_dir() / "sessions" / "practice"
-        session = SessionFile(folder / config.session_name, config.header(), fresh=True)
+        path = results_dir() / "sessions" / "practice" / config.session_name
+        if _practised(path, config):  # in an earlier visit
+            self._start_condition(0)
+            return
+        session = SessionFile(path, config.header(), fresh=True)
         self.practice = PreferenceApp(PreferenceTeaching(config, session, render=self.render))
         self.practice.on_finished.append(self._practice_feedback)
         self.widget.children = [widgets.HTML("<h3>Practice pair</h3>"), self.practice.widget]
@@ -130,6 +154,7 @@ class ParticipantApp:
         assert self.practice is not None
         teaching = self.practice.teaching
         teaching.close()
+        teaching.session.close()
         record = teaching.session.of_kind("preference")[0]
         near, far = record["candidates"]
         good = "left" if record["shown"][0] == near else "right"
@@ -155,11 +180,13 @@ class ParticipantApp:
         part = f"<h3>Part {index + 1} of {len(self.conditions)}</h3>"
         if app.teaching.done:  # answered in an earlier visit
             app.teaching.close()
+            app.teaching.session.close()
             self._start_condition(index + 1)
             return
 
         def finished() -> None:
             app.teaching.close()
+            app.teaching.session.close()  # its lock released: a later visit may open it
             if index + 1 < len(self.conditions):
                 text = f"<h3>Part {index + 1} of {len(self.conditions)} done.</h3><p>Take a short break.</p>"
                 self._screen(text, "Continue", lambda: self._start_condition(index + 1))
@@ -177,6 +204,29 @@ class ParticipantApp:
                 f"{self.config.participant}). You may close this window.</p>"
             )
         ]
+
+
+def _practised(path: Path, config: TeachConfig) -> bool:
+    """Whether the practice file at `path` holds this practice's answer (a participant who came back)."""
+    if not path.exists():
+        return False
+    try:
+        session = SessionFile(path, config.header())
+    except ValueError:  # a practice of other settings: practised afresh
+        return False
+    answered = bool(session.of_kind("preference"))
+    session.close()
+    return answered
+
+
+def _why_not(error: SessionLocked | SessionUnwritable) -> str:
+    """What a participant is told when a part cannot open its session file."""
+    if isinstance(error, SessionLocked):
+        return (
+            "Your answers so far are saved, but this part is still open in an earlier window (or a second "
+            f"tab). Close it and press the button again in {CULL_SECONDS + CULL_EVERY} seconds. ({error})"
+        )
+    return f"Your answers cannot be saved: please tell the experimenter. ({error})"
 
 
 class ParticipantMode(Exception):
@@ -234,12 +284,27 @@ def participant_view(notebook: Path, parameters: dict[str, Any], out: Path) -> P
     return out
 
 
+CULL_SECONDS, CULL_EVERY = 60, 15
+"""A page's kernel is shut down once no window has shown it for CULL_SECONDS (checked every CULL_EVERY s),
+which releases its session files: a participant who closed the window can come back without restarting
+the server. Voila leaves a closed page's kernel running otherwise."""
+
+
 def voila_command(view: Path, port: int) -> list[str]:
-    """Voila serving the participant's `view` on loopback at `port`, its code cells hidden."""
+    """Voila serving the participant's `view` on loopback at `port` (and no other port), its code cells
+    hidden, the kernels of closed pages shut down (CULL_SECONDS)."""
     return [
         sys.executable, "-m", "voila", str(view), "--no-browser", f"--port={port}", "--Voila.ip=127.0.0.1",
-        "--strip_sources=True", "--show_tracebacks=True",
+        "--Voila.port_retries=0", "--strip_sources=True", "--show_tracebacks=True",
+        f"--MappingKernelManager.cull_idle_timeout={CULL_SECONDS}",
+        f"--MappingKernelManager.cull_interval={CULL_EVERY}",
     ]  # fmt: skip
+
+
+def port_in_use(port: int) -> bool:
+    """Whether something already listens on 127.0.0.1:`port`."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        return probe.connect_ex(("127.0.0.1", port)) == 0
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -271,8 +336,18 @@ def main(argv: list[str] | None = None) -> None:
         "domain": args.domain,
         "true_parameter": truth,
     }
-    TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})  # bad values refused here
+    try:
+        TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})  # bad values refused here
+    except ValueError as error:
+        parser.error(str(error))
+    if port_in_use(args.port):
+        parser.error(
+            f"port {args.port} is in use, by another `make teach` or another server: stop it, or serve "
+            f"this participant on another port (--port, `make teach PORT=...`)"
+        )
     root = repo_root() or Path.cwd()
+    # A kill (SIGTERM) ends the server as Ctrl-C does: Voila stopped, the temporary folder removed.
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     with tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder:
         view = participant_view(
             root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
