@@ -61,7 +61,7 @@ help:
 	@echo 'make pytest                   the tests of tests/ on every core (about 2 min)'
 	@echo 'make nbval                    checks the outputs of the committed notebooks (about 4 min)'
 	@echo 'make lab                      JupyterLab on notebooks/'
-	@echo 'make teach PARTICIPANT=P01    notebook 09 for participant P01 with Voila, no code: http://127.0.0.1:8866/'
+	@echo 'make teach PARTICIPANT=P01    notebook 09 for participant P01 with Voila, no code: http://127.0.0.1:8866/ (PORT=...)'
 	@echo 'make bench                    the benchmarks of hipref/bench/, printing their figures'
 	@echo 'make readme                   the findings of README.md rewritten from the committed results/ (seconds)'
 	@echo 'make readme-check             checks the findings of README.md against the committed results/ (seconds)'

@@ -608,6 +608,20 @@ def test_a_start_button_acts_once_and_says_why_when_the_session_is_held(results,
     assert calls == [0, 1] and button.disabled
 
 
+def test_a_start_button_that_fails_otherwise_says_so_and_can_be_pressed_again(results):
+    config = TeachConfig(**{**SMALL, "preference_queries": 1, "catch_every": 2}, participant="P5")
+    app = ParticipantApp(config, render=False)
+
+    def broken() -> None:
+        raise RuntimeError("no clips")
+
+    app._screen("instructions", "Start", broken)
+    button, status = app.widget.children[1:]
+    button.click()  # ipywidgets shows the error's traceback, for the experimenter, and goes on
+    assert "please tell the experimenter" in status.value and "no clips" in status.value
+    assert not button.disabled
+
+
 def test_make_teach_refuses_a_bad_id_or_a_port_in_use_in_one_line(capsys):
     with pytest.raises(SystemExit) as stopped:
         participant_main(["x/y"])

@@ -135,6 +135,13 @@ class ParticipantApp:
             except (SessionLocked, SessionUnwritable) as error:
                 status.value = f"<p><b>{html.escape(_why_not(error))}</b></p>"
                 go.disabled = False
+            except Exception as error:
+                status.value = (
+                    "<p><b>Something went wrong: please tell the experimenter. Your answers so far are "
+                    f"saved. ({html.escape(str(error))})</b></p>"
+                )
+                go.disabled = False
+                raise  # shown to the experimenter in the server's log
 
         go.on_click(pressed)
         self.widget.children = [widgets.HTML(text), go, status]
