@@ -601,7 +601,7 @@ def test_a_start_button_acts_once_and_says_why_when_the_session_is_held(results,
     app._screen("instructions", "Start the practice pair", app._start_practice)
     button, status = app.widget.children[1:]
     button.click()  # the session is held by a window not yet closed: said, and the button works again
-    assert "still open in an earlier window" in status.value and "pid 1 on host h" in status.value
+    assert "still open in an earlier window" in status.value and "again in 90 seconds" in status.value
     assert not button.disabled
     button.click()
     button.click()  # a second press while the next screen is prepared: ignored
@@ -626,7 +626,9 @@ def test_make_teach_refuses_a_bad_id_or_a_port_in_use_in_one_line(capsys):
     with pytest.raises(SystemExit) as stopped:
         participant_main(["x/y"])
     assert stopped.value.code == 2
-    assert "participant must be 1-40 letters, digits, - or _" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert said.startswith("make teach: participant must be 1-40 letters, digits, - or _")
+    assert said.count("\n") == 1
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))
         server.listen()
@@ -634,7 +636,8 @@ def test_make_teach_refuses_a_bad_id_or_a_port_in_use_in_one_line(capsys):
         with pytest.raises(SystemExit) as stopped:
             participant_main(["P4", "--port", str(port)])
     assert stopped.value.code == 2
-    assert f"port {port} is in use" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert said.startswith(f"make teach: port {port} is in use") and said.count("\n") == 1
 
 
 def test_conditions_without_a_participant_are_refused():

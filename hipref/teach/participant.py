@@ -21,7 +21,6 @@ the window comes back to the same server.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import html
 import json
@@ -32,7 +31,7 @@ import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import ipywidgets as widgets
 from IPython.display import display
@@ -231,9 +230,9 @@ def _why_not(error: SessionLocked | SessionUnwritable) -> str:
     if isinstance(error, SessionLocked):
         return (
             "Your answers so far are saved, but this part is still open in an earlier window (or a second "
-            f"tab). Close it and press the button again in {CULL_SECONDS + CULL_EVERY} seconds. ({error})"
+            f"tab). Close it and press the button again in {CULL_SECONDS + 2 * CULL_EVERY} seconds."
         )
-    return f"Your answers cannot be saved: please tell the experimenter. ({error})"
+    return f"Your answers cannot be saved: please tell the experimenter ({error})."
 
 
 class ParticipantMode(Exception):
@@ -346,9 +345,9 @@ def main(argv: list[str] | None = None) -> None:
     try:
         TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})  # bad values refused here
     except ValueError as error:
-        parser.error(str(error))
+        refuse(str(error))
     if port_in_use(args.port):
-        parser.error(
+        refuse(
             f"port {args.port} is in use, by another `make teach` or another server: stop it, or serve "
             f"this participant on another port (--port, `make teach PORT=...`)"
         )
@@ -360,8 +359,29 @@ def main(argv: list[str] | None = None) -> None:
             root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
         )
         print(f"participant {args.participant}: http://127.0.0.1:{args.port}/", flush=True)
-        with contextlib.suppress(KeyboardInterrupt):  # the researcher stops the server (Ctrl-C)
-            subprocess.run(voila_command(view, args.port), check=False)
+        serve(voila_command(view, args.port))
+
+
+def refuse(reason: str) -> NoReturn:
+    """One line on stderr saying why the server is not started; exit status 2, as a usage error."""
+    print(f"make teach: {reason}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def serve(command: list[str], grace: float = 10.0) -> None:
+    """Run the server until it ends or this process is interrupted (Ctrl-C, a kill); interrupted, the
+    server is asked to stop (SIGTERM: it shuts its kernels down and removes its files) and killed after
+    `grace` seconds if it has not."""
+    server = subprocess.Popen(command)
+    try:
+        server.wait()
+    except KeyboardInterrupt:
+        server.terminate()
+        try:
+            server.wait(timeout=grace)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
 
 
 if __name__ == "__main__":
