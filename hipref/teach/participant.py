@@ -7,7 +7,7 @@ given, one session file each, catch trials mixed in as `catch_every` says) and a
 condition is a `PreferenceApp` on its own session, `participant_<id>_<rule>.jsonl`, whose header names
 the participant and the order of the conditions; the practice answer is stored apart, in
 `sessions/practice/`, out of the dataset of answers. A participant who comes back resumes where they
-stopped: finished conditions are skipped.
+stopped: the practice pair, once answered, and finished conditions are skipped.
 
     python -m hipref.teach.participant ID [--conditions uniform information_gain] [--port 8866]
 
