@@ -17,18 +17,16 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 import nbformat
 import pandas as pd
-import yaml
 
 from hipref.experiments.answers_to_success import AnswersCell, AnswersConfig, run_cell
 from hipref.experiments.si_run import SIRun
 from hipref.notebook import config_from_parameters
+from hipref.run_notebook import ROOT, load_parameters
 
-ROOT = Path(__file__).resolve().parents[2]
 NAME = "12_answers_to_success"
 
 
@@ -41,8 +39,7 @@ def notebook_config(profile: str) -> AnswersConfig:
     # The notebook's own parameters cell (typed assignments of literals), its annotations evaluated as the
     # kernel evaluates them, not as strings under this module's `from __future__ import annotations`.
     exec(compile(cell.source, "parameters", "exec", dont_inherit=True), namespace)
-    with open(ROOT / "params" / profile / f"{NAME}.yaml", encoding="utf-8") as file:
-        namespace.update(yaml.safe_load(file) or {})
+    namespace.update(load_parameters(ROOT / "params" / profile / f"{NAME}.yaml"))
     namespace.pop("__builtins__")
     return config_from_parameters(AnswersConfig, namespace)
 
@@ -52,8 +49,7 @@ def kind_of_run(cell: SIRun | AnswersCell, held_out_seeds: tuple[int, ...]) -> t
     if isinstance(cell, AnswersCell):
         part = "held_out" if cell.seed in held_out_seeds else "answers"
         return part, f"bayes, told {cell.told}", cell.query_rule, f"{cell.episodes} answers"
-    rule = cell.fine_tuning.pesi.candidate_sampling if cell.fine_tuning is not None else "uniform"
-    return "task", cell.method, rule, f"{cell.noise:.0%} flips"
+    return "task", cell.method, cell.fine_tuning.pesi.candidate_sampling, f"{cell.noise:.0%} flips"
 
 
 def time_parts(config: AnswersConfig, parts: tuple[str, ...]) -> pd.DataFrame:

@@ -47,6 +47,12 @@ from hipref.teach.session import SessionFile, SessionLocked, SessionUnwritable
 TAG = "participant"
 """The tag of notebook 09's cells a participant's view keeps (besides the parameters cell)."""
 
+CULL_SECONDS, CULL_EVERY = 60, 15
+"""A page's kernel is shut down once no window has shown it for CULL_SECONDS (checked every CULL_EVERY s),
+which releases its session files: a participant who closed the window can come back without restarting
+the server. Voila leaves a closed page's kernel running otherwise."""
+
+
 INSTRUCTIONS = """
 <h2>Teach a robot</h2>
 <p>A robot arm {task}. It does not know {parameter}: it has to guess, and a wrong guess shows in its
@@ -288,12 +294,6 @@ def participant_view(notebook: Path, parameters: dict[str, Any], out: Path) -> P
     content["metadata"].pop("widgets", None)
     out.write_text(json.dumps(content))
     return out
-
-
-CULL_SECONDS, CULL_EVERY = 60, 15
-"""A page's kernel is shut down once no window has shown it for CULL_SECONDS (checked every CULL_EVERY s),
-which releases its session files: a participant who closed the window can come back without restarting
-the server. Voila leaves a closed page's kernel running otherwise."""
 
 
 def voila_command(view: Path, port: int) -> list[str]:
