@@ -172,6 +172,11 @@ def _cells(values: dict[str, str]) -> str:
     return f"{values['wiping']} in wiping and {values['pushing']} in pushing"
 
 
+def _count(step: pd.Series) -> str:
+    """A row of `answers_to_step`: its answers to one step and their 95 % interval."""
+    return f"{step['answers']:g} (CI {step['low']:g}-{step['high']:g})"
+
+
 def _answers(results: Path) -> dict[str, str]:
     """Notebook 12: what an exact Bayesian learner takes from the same answers as PESI."""
     steps = pd.read_csv(results / "tables" / "12_answers_to_step.csv")
@@ -198,7 +203,7 @@ def _answers(results: Path) -> dict[str, str]:
     }
     for noise, key in ((0.0, "0"), (FLIPS, "20")):
         at = ig[(ig["noise"] == noise) & (ig["told"] == "kind")].set_index("domain")
-        out[f"nb12_kind{key}"] = _cells({d: f"{at.loc[d, 'answers']:g}" for d in DOMAINS})
+        out[f"nb12_kind{key}"] = _cells({d: _count(at.loc[d]) for d in DOMAINS})
         out[f"nb12_floor{key}"] = _cells({d: f"{at.loc[d, 'floor']:.1f}" for d in DOMAINS})
         out[f"nb12_ratio{key}"] = _cells({d: f"{at.loc[d, 'ratio']:.2f}" for d in DOMAINS})
         out[f"nb12_bar{key}"] = str(STEP_BOUNDS[noise])
@@ -271,9 +276,7 @@ def _held_out_answers(held_out: pd.DataFrame) -> dict[str, str]:
         ),
     }
     for noise, key in ((0.0, "0"), (FLIPS, "20")):
-        out[f"nb12_held_kind{key}"] = _cells(
-            {d: f"{steps.loc[(d, noise, 'kind'), 'answers']:g}" for d in DOMAINS}
-        )
+        out[f"nb12_held_kind{key}"] = _cells({d: _count(steps.loc[(d, noise, "kind")]) for d in DOMAINS})
     return out
 
 

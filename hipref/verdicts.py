@@ -148,12 +148,16 @@ def within(difference: Difference, low: float, high: float) -> str:
     return NO if difference.high < low or difference.low > high else NO_DIFFERENCE
 
 
-def at_most(value: float, limit: float, *, environments: int) -> str:
-    """A count read off all `environments` at once (answers needed in 90 % of them): 'yes' if `value` is at
-    most `limit`, 'no' otherwise or when it was never reached (NaN)."""
-    if environments < MIN_ENVIRONMENTS:
+def at_most(count: Difference, limit: float) -> str:
+    """A count read off all of `count.n` environments at once (answers needed in 90 % of them), with its
+    95 % interval over resampled environments: 'yes' if the whole interval is at most `limit`, 'no' if it
+    lies wholly above (a bound never reached, NaN, counts as infinite), else 'no difference detected'."""
+    if count.n < MIN_ENVIRONMENTS:
         return TOO_FEW
-    return YES if np.isfinite(value) and value <= limit else NO
+    low, high = (np.inf if np.isnan(v) else v for v in (count.low, count.high))
+    if high <= limit:
+        return YES
+    return NO if low > limit else NO_DIFFERENCE
 
 
 def holds_in_all(condition: bool, *, environments: int) -> str:

@@ -10,6 +10,7 @@ import pytest
 
 from hipref.bench.model_choice import TEACHERS, block_table, share_over, split_table, teacher_family
 from hipref.experiments.answers_tables import (
+    answers_interval,
     answers_to_step,
     efficiency,
     first_for_good,
@@ -76,6 +77,22 @@ def test_answers_to_step_is_where_enough_environments_are_within_a_step_for_good
     assert answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"] == 2
     errors[(0.89, 0)] = [0.05, 0.05, 0.05, 0.05]
     assert np.isnan(answers_to_step(_answers_rows(errors, counts)).loc[0, "answers"])
+
+
+def test_the_answers_interval_resamples_truths_with_all_their_seeds() -> None:
+    # Ten truths, one slow (within one step from answer 3) and nine fast (from 2), five copies of each: a
+    # resample holding the slow truth twice has 10 of 50 environments short at answer 2 and needs 3.
+    slow, fast = [0.05, 0.05, 0.005, 0.005], [0.05, 0.005, 0.005, 0.005]
+    once = {(0.5 + i / 100, 0): slow if i == 0 else fast for i in range(10)}
+    copies = {(truth, seed): values for (truth, _), values in once.items() for seed in range(5)}
+    rows = _answers_rows(copies, [1, 2, 3, 4])
+    step = answers_to_step(rows).iloc[0]
+    assert (step["answers"], step["low"], step["high"]) == (2, 2, 3)
+    # The truths' draws, not the 50 environments': P(the slow truth at least twice in 10) = 0.26, so the
+    # upper bound is 3; drawn one by one the environments would almost never give 10 slow ones of 50.
+    assert answers_interval(rows, resamples=400) == (2.0, 3.0)
+    with pytest.raises(ValueError, match="grid of truths x seeds"):
+        answers_interval(rows[~((rows["ground_truth"] == 0.5) & (rows["seed"] == 4))])
 
 
 def test_the_answers_to_a_step_of_many_sets_at_once_follow_the_definition() -> None:

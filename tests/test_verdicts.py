@@ -198,7 +198,7 @@ def test_below_five_environments_there_is_no_interval_and_every_rule_says_too_fe
         no_difference(four),
         within(four, 0.0, 2.0),
         better_on_both(four, two),
-        at_most(3.0, 10.0, environments=4),
+        at_most(Difference(3.0, 2.0, 4.0, 4), 10.0),
         holds_in_all(True, environments=1),
     ):
         assert verdict == TOO_FEW
@@ -237,6 +237,15 @@ def test_a_trend_resamples_whole_units() -> None:
 def test_a_trend_needs_two_x_values() -> None:
     with pytest.raises(ValueError, match="two distinct values of 'noise'"):
         trend(pd.DataFrame({"seed": [0, 1], "noise": [0.2, 0.2], "value": [1.0, 2.0]}), x="noise")
+
+
+def test_at_most_reads_the_whole_interval_of_a_count() -> None:
+    assert at_most(Difference(20.0, 15.0, 29.0, 10), 30.0) == "yes"
+    assert at_most(Difference(25.0, 15.0, 45.0, 10), 30.0) == NONE  # the point below, the interval across
+    assert at_most(Difference(40.0, 31.0, 50.0, 10), 30.0) == "no"
+    # Never reached in any resample: infinite, so contradicted; reached in some: undecided.
+    assert at_most(Difference(np.nan, np.nan, np.nan, 10), 30.0) == "no"
+    assert at_most(Difference(np.nan, 20.0, np.inf, 10), 30.0) == NONE
 
 
 def test_within_and_combine() -> None:

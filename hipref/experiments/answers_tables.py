@@ -33,19 +33,45 @@ SETTING = ["domain", "teacher", "noise", "query_rule", "told"]
 def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFrame:
     """Per setting of the answers part, the answers after which the error is within one step of Phi (1 cm,
     0.25 kg) in at least `share` of the environments and stays so up to the last answer (NaN if never),
-    beside the Shannon floor for the paper's teacher (`shannon_floor`, K = |Phi|, e its flip rate) and
-    their ratio."""
+    with its 95 % interval (`low`, `high`: `answers_interval`), beside the Shannon floor for the paper's
+    teacher (`shannon_floor`, K = |Phi|, e its flip rate) and their ratio."""
     out = []
     for setting, group in answer_errors(rows).groupby(SETTING, sort=False):
         domain, teacher, noise = setting[0], setting[1], float(setting[2])
         within, counts = within_step(group, str(domain))
         reached = float(first_for_good(within[None], counts, share)[0])
         reached = reached if math.isfinite(reached) else np.nan
+        low, high = answers_interval(group, share)
         floor = (
             shannon_floor(domain_spec(str(domain)).candidates.size, noise) if teacher == "mistake" else np.nan
         )
-        out.append((*setting, len(within), reached, floor, reached / floor))
-    return pd.DataFrame(out, columns=[*SETTING, "environments", "answers", "floor", "ratio"])
+        out.append((*setting, len(within), reached, low, high, floor, reached / floor))
+    return pd.DataFrame(out, columns=[*SETTING, "environments", "answers", "low", "high", "floor", "ratio"])
+
+
+def answers_interval(
+    errors: pd.DataFrame, share: float = CONSISTENT, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float]:
+    """Of one curve's `answer_errors`: a 95 % percentile interval of its answers to one step
+    (`answers_to_step`), the truths resampled with replacement, each with all its seeds (`truth_draws`); a
+    resample that never gets within one step counts as infinite."""
+    within, counts = within_step(errors, str(errors["domain"].iloc[0]))
+    draws = truth_draws(_environments(errors), resamples, seed)
+    counted = first_for_good(within[draws], counts, share)
+    low, high = np.quantile(counted, [0.025, 0.975], method="inverted_cdf")
+    return float(low), float(high)
+
+
+def truth_draws(environments: list[tuple[float, int]], resamples: int, seed: int) -> np.ndarray:
+    """(resamples, environments) indices into `environments` ((truth, seed), in `within_step`'s order): the
+    truths drawn with replacement, each with all its seeds (with perfect answers the seeds of a truth are
+    copies of one environment, so resampling them apart would feign certainty)."""
+    truths = np.array([truth for truth, _ in environments])
+    clusters = [np.flatnonzero(truths == t) for t in np.unique(truths)]
+    if len({c.size for c in clusters}) > 1:
+        raise ValueError("the environments must be a grid of truths x seeds (as many seeds for every truth)")
+    picked = np.random.default_rng(seed).integers(len(clusters), size=(resamples, len(clusters)))
+    return np.stack(clusters)[picked].reshape(resamples, -1)
 
 
 def answer_errors(rows: pd.DataFrame) -> pd.DataFrame:
@@ -146,11 +172,10 @@ def ratio_interval(
 ) -> tuple[float, float]:
     """Of one setting's `answer_errors` under one query rule: a 95 % percentile interval of the learner told
     `told_`'s answers to one step (`by_answers`) or mean final error over the learner told the model's. The
-    truths are resampled with replacement, each with all its seeds (with perfect answers the seeds of a
-    truth are copies of one environment), the same draw for both learners (they share truths, seeds and
-    teacher draws). Counting answers, a resample where only the learner told `told_` never gets there
-    counts as an infinite ratio, where only the told learner never does as zero, and where neither does it
-    is left out; NaN bounds when every resample is, or without either learner."""
+    truths are resampled with all their seeds (`truth_draws`), the same draw for both learners (they share
+    truths, seeds and teacher draws). Counting answers, a resample where only the learner told `told_` never
+    gets there counts as an infinite ratio, where only the told learner never does as zero, and where
+    neither does it is left out; NaN bounds when every resample is, or without either learner."""
     model, other = errors[errors["told"] == "model"], errors[errors["told"] == told_]
     if model.empty or other.empty:
         return np.nan, np.nan
@@ -159,15 +184,10 @@ def ratio_interval(
         raise ValueError(
             f"the learners told the model and told {told_!r} must be run on the same environments"
         )
-    truths = np.array([truth for truth, _ in environments])
-    clusters = [np.flatnonzero(truths == t) for t in np.unique(truths)]
-    if len({c.size for c in clusters}) > 1:
-        raise ValueError("the environments must be a grid of truths x seeds (as many seeds for every truth)")
+    draws = truth_draws(environments, resamples, seed)
     domain = str(errors["domain"].iloc[0])
     within_model, counts = within_step(model, domain)
     within_other, _ = within_step(other, domain)
-    picked = np.random.default_rng(seed).integers(len(clusters), size=(resamples, len(clusters)))
-    draws = np.stack(clusters)[picked].reshape(resamples, -1)
     with np.errstate(divide="ignore", invalid="ignore"):  # neither there: NaN, left out
         if by_answers:
             ratios = first_for_good(within_other[draws], counts) / first_for_good(within_model[draws], counts)
