@@ -622,6 +622,44 @@ def test_a_start_button_that_fails_otherwise_says_so_and_can_be_pressed_again(re
     assert not button.disabled
 
 
+def running(pid: int) -> bool:
+    """Whether process `pid` exists and has not ended (a zombie, ended but not yet reaped, has)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_the_server_does_not_outlive_a_killed_make_teach(tmp_path):
+    # `serve` as `make teach` runs it, with a stand-in server that writes its pid and sleeps; the parent is
+    # then killed outright (no handler runs), and the server must still end.
+    pid_file = tmp_path / "server.pid"
+    server = f"import os, time; open({str(pid_file)!r}, 'w').write(str(os.getpid())); time.sleep(120)"
+    parent = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"from hipref.teach.participant import serve; serve([{sys.executable!r}, '-c', {server!r}])",
+        ]
+    )
+    try:
+        for _ in range(600):
+            if pid_file.exists() and pid_file.read_text():
+                break
+            threading.Event().wait(0.05)
+        server_pid = int(pid_file.read_text())
+    finally:
+        parent.kill()
+        parent.wait()
+    for _ in range(200):
+        if not running(server_pid):
+            break
+        threading.Event().wait(0.05)
+    else:
+        os.kill(server_pid, signal.SIGKILL)
+        pytest.fail("the server outlived its killed parent by 10 s")
+
+
 def test_make_teach_refuses_a_bad_id_or_a_port_in_use_in_one_line(capsys):
     with pytest.raises(SystemExit) as stopped:
         participant_main(["x/y"])

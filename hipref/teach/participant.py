@@ -21,9 +21,11 @@ the window comes back to the same server.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import dataclasses
 import html
 import json
+import os
 import signal
 import socket
 import subprocess
@@ -368,11 +370,24 @@ def refuse(reason: str) -> NoReturn:
     raise SystemExit(2)
 
 
+PR_SET_PDEATHSIG = 1
+"""Linux's prctl option: the signal a process gets when its parent dies."""
+
+
 def serve(command: list[str], grace: float = 10.0) -> None:
     """Run the server until it ends or this process is interrupted (Ctrl-C, a kill); interrupted, the
     server is asked to stop (SIGTERM: it shuts its kernels down and removes its files) and killed after
-    `grace` seconds if it has not."""
-    server = subprocess.Popen(command)
+    `grace` seconds if it has not. On Linux the server also gets SIGTERM when this process dies without a
+    word (SIGKILL, out of memory), so it never outlives it."""
+    parent = os.getpid()
+
+    def end_with_parent() -> None:  # in the server's process, before it starts
+        if sys.platform.startswith("linux"):
+            ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+            if os.getppid() != parent:  # the parent died before the request: nobody to wait for
+                os._exit(1)
+
+    server = subprocess.Popen(command, preexec_fn=end_with_parent)
     try:
         server.wait()
     except KeyboardInterrupt:
