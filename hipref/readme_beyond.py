@@ -174,7 +174,8 @@ def _cells(values: dict[str, str]) -> str:
 
 def _count(step: pd.Series) -> str:
     """A row of `answers_to_step`: its answers to one step and their 95 % interval."""
-    return f"{step['answers']:g} (CI {step['low']:g}-{step['high']:g})"
+    answers = f"{step['answers']:g}" if np.isfinite(step["answers"]) else "never"
+    return f"{answers} (CI {step['low']:g}-{step['high']:g})" if np.isfinite(step["low"]) else answers
 
 
 def _answers(results: Path) -> dict[str, str]:

@@ -80,19 +80,22 @@ def test_answers_to_step_is_where_enough_environments_are_within_a_step_for_good
 
 
 def test_the_answers_interval_resamples_truths_with_all_their_seeds() -> None:
-    # Ten truths, one slow (within one step from answer 3) and nine fast (from 2), five copies of each: a
-    # resample holding the slow truth twice has 10 of 50 environments short at answer 2 and needs 3.
+    # Twenty truths, one slow (within one step from answer 3) and nineteen fast (from 2), ten copies of each.
+    # A resample of the truths holding the slow one three times or more (probability 0.075) has 30 of 200
+    # environments short at answer 2 and needs 3; drawn one by one, 21 slow environments of 200 would be
+    # needed (probability 0.0005), and the interval would be 2-2.
     slow, fast = [0.05, 0.05, 0.005, 0.005], [0.05, 0.005, 0.005, 0.005]
-    once = {(0.5 + i / 100, 0): slow if i == 0 else fast for i in range(10)}
-    copies = {(truth, seed): values for (truth, _), values in once.items() for seed in range(5)}
+    once = {(0.5 + i / 100, 0): slow if i == 0 else fast for i in range(20)}
+    copies = {(truth, seed): values for (truth, _), values in once.items() for seed in range(10)}
     rows = _answers_rows(copies, [1, 2, 3, 4])
     step = answers_to_step(rows).iloc[0]
-    assert (step["answers"], step["low"], step["high"]) == (2, 2, 3)
-    # The truths' draws, not the 50 environments': P(the slow truth at least twice in 10) = 0.26, so the
-    # upper bound is 3; drawn one by one the environments would almost never give 10 slow ones of 50.
-    assert answers_interval(rows, resamples=400) == (2.0, 3.0)
-    with pytest.raises(ValueError, match="grid of truths x seeds"):
-        answers_interval(rows[~((rows["ground_truth"] == 0.5) & (rows["seed"] == 4))])
+    assert (step["answers"], step["low"], step["high"], step["truths"]) == (2, 2, 3, 20)
+    assert answers_interval(rows, resamples=1000) == (2.0, 3.0)
+    # Not a grid of truths x seeds (one run missing), or a single truth: no interval, the count still read.
+    gap = rows[~((rows["ground_truth"] == 0.5) & (rows["seed"] == 9))]
+    assert np.isnan(answers_interval(gap)).all() and answers_to_step(gap).loc[0, "answers"] == 2
+    single = rows[rows["ground_truth"] == 0.51]
+    assert np.isnan(answers_interval(single)).all()
 
 
 def test_the_answers_to_a_step_of_many_sets_at_once_follow_the_definition() -> None:

@@ -630,6 +630,7 @@ def running(pid: int) -> bool:
         return False
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the parent-death signal is Linux's")
 def test_the_server_does_not_outlive_a_killed_make_teach(tmp_path):
     # `serve` as `make teach` runs it, with a stand-in server that writes its pid and sleeps; the parent is
     # then killed outright (no handler runs), and the server must still end.

@@ -33,8 +33,9 @@ SETTING = ["domain", "teacher", "noise", "query_rule", "told"]
 def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFrame:
     """Per setting of the answers part, the answers after which the error is within one step of Phi (1 cm,
     0.25 kg) in at least `share` of the environments and stays so up to the last answer (NaN if never),
-    with its 95 % interval (`low`, `high`: `answers_interval`), beside the Shannon floor for the paper's
-    teacher (`shannon_floor`, K = |Phi|, e its flip rate) and their ratio."""
+    with its 95 % interval (`low`, `high`: `answers_interval`) and the number of truths it resamples,
+    beside the Shannon floor for the paper's teacher (`shannon_floor`, K = |Phi|, e its flip rate) and
+    their ratio."""
     out = []
     for setting, group in answer_errors(rows).groupby(SETTING, sort=False):
         domain, teacher, noise = setting[0], setting[1], float(setting[2])
@@ -42,11 +43,13 @@ def answers_to_step(rows: pd.DataFrame, share: float = CONSISTENT) -> pd.DataFra
         reached = float(first_for_good(within[None], counts, share)[0])
         reached = reached if math.isfinite(reached) else np.nan
         low, high = answers_interval(group, share)
+        truths = group["ground_truth"].nunique()
         floor = (
             shannon_floor(domain_spec(str(domain)).candidates.size, noise) if teacher == "mistake" else np.nan
         )
-        out.append((*setting, len(within), reached, low, high, floor, reached / floor))
-    return pd.DataFrame(out, columns=[*SETTING, "environments", "answers", "low", "high", "floor", "ratio"])
+        out.append((*setting, len(within), truths, reached, low, high, floor, reached / floor))
+    columns = [*SETTING, "environments", "truths", "answers", "low", "high", "floor", "ratio"]
+    return pd.DataFrame(out, columns=columns)
 
 
 def answers_interval(
@@ -54,10 +57,15 @@ def answers_interval(
 ) -> tuple[float, float]:
     """Of one curve's `answer_errors`: a 95 % percentile interval of its answers to one step
     (`answers_to_step`), the truths resampled with replacement, each with all its seeds (`truth_draws`); a
-    resample that never gets within one step counts as infinite."""
+    resample that never gets within one step counts as infinite. NaN bounds with fewer than two truths or
+    where the environments are not a grid of truths x seeds (a run missing), which resampling truths whole
+    needs."""
     within, counts = within_step(errors, str(errors["domain"].iloc[0]))
-    draws = truth_draws(_environments(errors), resamples, seed)
-    counted = first_for_good(within[draws], counts, share)
+    environments = _environments(errors)
+    truths = [truth for truth, _ in environments]
+    if len(set(truths)) < 2 or not _is_grid(truths):
+        return np.nan, np.nan
+    counted = first_for_good(within[truth_draws(environments, resamples, seed)], counts, share)
     low, high = np.quantile(counted, [0.025, 0.975], method="inverted_cdf")
     return float(low), float(high)
 
@@ -67,11 +75,16 @@ def truth_draws(environments: list[tuple[float, int]], resamples: int, seed: int
     truths drawn with replacement, each with all its seeds (with perfect answers the seeds of a truth are
     copies of one environment, so resampling them apart would feign certainty)."""
     truths = np.array([truth for truth, _ in environments])
-    clusters = [np.flatnonzero(truths == t) for t in np.unique(truths)]
-    if len({c.size for c in clusters}) > 1:
+    if not _is_grid(list(truths)):
         raise ValueError("the environments must be a grid of truths x seeds (as many seeds for every truth)")
+    clusters = np.stack([np.flatnonzero(truths == t) for t in np.unique(truths)])
     picked = np.random.default_rng(seed).integers(len(clusters), size=(resamples, len(clusters)))
-    return np.stack(clusters)[picked].reshape(resamples, -1)
+    return clusters[picked].reshape(resamples, -1)
+
+
+def _is_grid(truths: list[float]) -> bool:
+    """Whether every truth of the environments has as many seeds."""
+    return len(set(pd.Series(truths).value_counts())) == 1
 
 
 def answer_errors(rows: pd.DataFrame) -> pd.DataFrame:
@@ -206,5 +219,5 @@ def final_errors(errors: pd.DataFrame) -> np.ndarray:
 
 
 def _environments(errors: pd.DataFrame) -> list[tuple[float, int]]:
-    """The (truth, seed) of every environment, in `within_step`'s order."""
-    return sorted(set(zip(errors["ground_truth"], errors["seed"], strict=True)))
+    """The (truth, seed) of every environment `within_step` reads, in its order."""
+    return [(float(truth), int(seed)) for truth, seed in _by_environment(errors).index]

@@ -380,12 +380,15 @@ def serve(command: list[str], grace: float = 10.0) -> None:
     `grace` seconds if it has not. On Linux the server also gets SIGTERM when this process dies without a
     word (SIGKILL, out of memory), so it never outlives it."""
     parent = os.getpid()
+    prctl = ctypes.CDLL(None, use_errno=True).prctl if sys.platform.startswith("linux") else None
 
     def end_with_parent() -> None:  # in the server's process, before it starts
-        if sys.platform.startswith("linux"):
-            ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-            if os.getppid() != parent:  # the parent died before the request: nobody to wait for
-                os._exit(1)
+        if prctl is None:
+            return
+        if prctl(PR_SET_PDEATHSIG, signal.SIGTERM) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+        if os.getppid() != parent:  # the parent died before the request: nobody to wait for
+            os._exit(1)
 
     server = subprocess.Popen(command, preexec_fn=end_with_parent)
     try:
