@@ -355,7 +355,8 @@ PARTICIPANT = {
 @pytest.mark.slow
 def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
     browser_available()
-    from hipref.teach.participant import participant_view, voila_command
+    from hipref.teach.participant import participant_view
+    from hipref.teach.server import voila_command
 
     view = participant_view(ROOT / "notebooks" / "09_teach.ipynb", PARTICIPANT, tmp_path / "teach.ipynb")
     port, results = free_port(), tmp_path / "results"

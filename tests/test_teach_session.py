@@ -640,7 +640,7 @@ def test_the_server_does_not_outlive_a_killed_make_teach(tmp_path):
         [
             sys.executable,
             "-c",
-            f"from hipref.teach.participant import serve; serve([{sys.executable!r}, '-c', {server!r}])",
+            f"from hipref.teach.server import serve; serve([{sys.executable!r}, '-c', {server!r}])",
         ]
     )
     try:

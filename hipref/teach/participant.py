@@ -21,14 +21,10 @@ the window comes back to the same server.
 from __future__ import annotations
 
 import argparse
-import ctypes
 import dataclasses
 import html
 import json
-import os
 import signal
-import socket
-import subprocess
 import sys
 import tempfile
 from collections.abc import Callable
@@ -44,15 +40,11 @@ from hipref.results import repo_root, results_dir
 from hipref.teach.app import PreferenceApp
 from hipref.teach.config import TeachConfig
 from hipref.teach.preferences import PreferenceTeaching
+from hipref.teach.server import CULL_EVERY, CULL_SECONDS, port_in_use, serve, voila_command
 from hipref.teach.session import SessionFile, SessionLocked, SessionUnwritable
 
 TAG = "participant"
 """The tag of notebook 09's cells a participant's view keeps (besides the parameters cell)."""
-
-CULL_SECONDS, CULL_EVERY = 60, 15
-"""A page's kernel is shut down once no window has shown it for CULL_SECONDS (checked every CULL_EVERY s),
-which releases its session files: a participant who closed the window can come back without restarting
-the server. Voila leaves a closed page's kernel running otherwise."""
 
 
 INSTRUCTIONS = """
@@ -298,23 +290,6 @@ def participant_view(notebook: Path, parameters: dict[str, Any], out: Path) -> P
     return out
 
 
-def voila_command(view: Path, port: int) -> list[str]:
-    """Voila serving the participant's `view` on loopback at `port` (and no other port), its code cells
-    hidden, the kernels of closed pages shut down (CULL_SECONDS)."""
-    return [
-        sys.executable, "-m", "voila", str(view), "--no-browser", f"--port={port}", "--Voila.ip=127.0.0.1",
-        "--Voila.port_retries=0", "--strip_sources=True", "--show_tracebacks=True",
-        f"--MappingKernelManager.cull_idle_timeout={CULL_SECONDS}",
-        f"--MappingKernelManager.cull_interval={CULL_EVERY}",
-    ]  # fmt: skip
-
-
-def port_in_use(port: int) -> bool:
-    """Whether something already listens on 127.0.0.1:`port`."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        return probe.connect_ex(("127.0.0.1", port)) == 0
-
-
 def main(argv: list[str] | None = None) -> None:
     formatter = argparse.RawDescriptionHelpFormatter
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=formatter)
@@ -368,38 +343,6 @@ def refuse(reason: str) -> NoReturn:
     """One line on stderr saying why the server is not started; exit status 2, as a usage error."""
     print(f"make teach: {reason}", file=sys.stderr)
     raise SystemExit(2)
-
-
-PR_SET_PDEATHSIG = 1
-"""Linux's prctl option: the signal a process gets when its parent dies."""
-
-
-def serve(command: list[str], grace: float = 10.0) -> None:
-    """Run the server until it ends or this process is interrupted (Ctrl-C, a kill); interrupted, the
-    server is asked to stop (SIGTERM: it shuts its kernels down and removes its files) and killed after
-    `grace` seconds if it has not. On Linux the server also gets SIGTERM when this process dies without a
-    word (SIGKILL, out of memory), so it never outlives it."""
-    parent = os.getpid()
-    prctl = ctypes.CDLL(None, use_errno=True).prctl if sys.platform.startswith("linux") else None
-
-    def end_with_parent() -> None:  # in the server's process, before it starts
-        if prctl is None:
-            return
-        if prctl(PR_SET_PDEATHSIG, signal.SIGTERM) != 0:
-            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
-        if os.getppid() != parent:  # the parent died before the request: nobody to wait for
-            os._exit(1)
-
-    server = subprocess.Popen(command, preexec_fn=end_with_parent)
-    try:
-        server.wait()
-    except KeyboardInterrupt:
-        server.terminate()
-        try:
-            server.wait(timeout=grace)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
 
 
 if __name__ == "__main__":

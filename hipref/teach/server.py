@@ -1,0 +1,66 @@
+"""How `make teach` serves a participant's view of notebook 09: Voila on loopback, code hidden, the kernels
+of closed pages shut down, and no server left running once the command ends, however it ends."""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+CULL_SECONDS, CULL_EVERY = 60, 15
+"""A page's kernel is shut down once no window has shown it for CULL_SECONDS (checked every CULL_EVERY s),
+which releases its session files: a participant who closed the window can come back without restarting
+the server. Voila leaves a closed page's kernel running otherwise."""
+
+
+def voila_command(view: Path, port: int) -> list[str]:
+    """Voila serving the participant's `view` on loopback at `port` (and no other port), its code cells
+    hidden, the kernels of closed pages shut down (CULL_SECONDS)."""
+    return [
+        sys.executable, "-m", "voila", str(view), "--no-browser", f"--port={port}", "--Voila.ip=127.0.0.1",
+        "--Voila.port_retries=0", "--strip_sources=True", "--show_tracebacks=True",
+        f"--MappingKernelManager.cull_idle_timeout={CULL_SECONDS}",
+        f"--MappingKernelManager.cull_interval={CULL_EVERY}",
+    ]  # fmt: skip
+
+
+def port_in_use(port: int) -> bool:
+    """Whether something already listens on 127.0.0.1:`port`."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        return probe.connect_ex(("127.0.0.1", port)) == 0
+
+
+PR_SET_PDEATHSIG = 1
+"""Linux's prctl option: the signal a process gets when its parent dies."""
+
+
+def serve(command: list[str], grace: float = 10.0) -> None:
+    """Run the server until it ends or this process is interrupted (Ctrl-C, a kill); interrupted, the
+    server is asked to stop (SIGTERM: it shuts its kernels down and removes its files) and killed after
+    `grace` seconds if it has not. On Linux the server also gets SIGTERM when this process dies without a
+    word (SIGKILL, out of memory), so it never outlives it."""
+    parent = os.getpid()
+    prctl = ctypes.CDLL(None, use_errno=True).prctl if sys.platform.startswith("linux") else None
+
+    def end_with_parent() -> None:  # in the server's process, before it starts
+        if prctl is None:
+            return
+        if prctl(PR_SET_PDEATHSIG, signal.SIGTERM) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+        if os.getppid() != parent:  # the parent died before the request: nobody to wait for
+            os._exit(1)
+
+    server = subprocess.Popen(command, preexec_fn=end_with_parent)
+    try:
+        server.wait()
+    except KeyboardInterrupt:
+        server.terminate()
+        try:
+            server.wait(timeout=grace)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
