@@ -149,9 +149,10 @@ def within(difference: Difference, low: float, high: float) -> str:
 
 
 def at_most(count: Difference, limit: float) -> str:
-    """A count read off all of `count.n` environments at once (answers needed in 90 % of them), with its
-    95 % interval over resampled environments: 'yes' if the whole interval is at most `limit`, 'no' if it
-    lies wholly above (a bound never reached, NaN, counts as infinite), else 'no difference detected'."""
+    """A count read off all environments at once (answers needed in 90 % of them), with its 95 % interval
+    over `count.n` resampled units (the truths, each with all its seeds): 'yes' if the whole interval is at
+    most `limit`, 'no' if it lies wholly above (a bound never reached, NaN, counts as infinite), else 'no
+    difference detected'."""
     if count.n < MIN_ENVIRONMENTS:
         return TOO_FEW
     low, high = (np.inf if np.isnan(v) else v for v in (count.low, count.high))
