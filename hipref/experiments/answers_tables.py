@@ -60,8 +60,9 @@ def answers_interval(
     resample that never gets within one step counts as infinite. NaN bounds with fewer than two truths or
     where the environments are not a grid of truths x seeds (a run missing), which resampling truths whole
     needs."""
-    within, counts = within_step(errors, str(errors["domain"].iloc[0]))
-    environments = _environments(errors)
+    wide = _by_environment(errors)
+    within, counts = _within(wide, str(errors["domain"].iloc[0]))
+    environments = _environments(wide)
     truths = [truth for truth, _ in environments]
     if len(set(truths)) < 2 or not _is_grid(truths):
         return np.nan, np.nan
@@ -95,7 +96,11 @@ def answer_errors(rows: pd.DataFrame) -> pd.DataFrame:
 def within_step(errors: pd.DataFrame, domain: str) -> tuple[np.ndarray, np.ndarray]:
     """Of one curve's `answer_errors`: (environments, checkpoints) whether each environment's error is within
     one step of Phi, its environments ordered by (truth, seed); and the checkpoints' answer counts."""
-    wide = _by_environment(errors)
+    return _within(_by_environment(errors), domain)
+
+
+def _within(wide: pd.DataFrame, domain: str) -> tuple[np.ndarray, np.ndarray]:
+    """`within_step` of a curve already as (environments, checkpoints) (`_by_environment`)."""
     step = domain_spec(domain).candidates.resolution * (1 + 1e-9)
     return wide.to_numpy() <= step, wide.columns.to_numpy(dtype=float)
 
@@ -192,20 +197,22 @@ def ratio_interval(
     model, other = errors[errors["told"] == "model"], errors[errors["told"] == told_]
     if model.empty or other.empty:
         return np.nan, np.nan
-    environments = _environments(model)
-    if environments != _environments(other):
+    wide_model, wide_other = _by_environment(model), _by_environment(other)
+    environments = _environments(wide_model)
+    if environments != _environments(wide_other):
         raise ValueError(
             f"the learners told the model and told {told_!r} must be run on the same environments"
         )
     draws = truth_draws(environments, resamples, seed)
     domain = str(errors["domain"].iloc[0])
-    within_model, counts = within_step(model, domain)
-    within_other, _ = within_step(other, domain)
+    within_model, counts = _within(wide_model, domain)
+    within_other, _ = _within(wide_other, domain)
+    final_model, final_other = wide_model.to_numpy()[:, -1], wide_other.to_numpy()[:, -1]
     with np.errstate(divide="ignore", invalid="ignore"):  # neither there: NaN, left out
         if by_answers:
             ratios = first_for_good(within_other[draws], counts) / first_for_good(within_model[draws], counts)
         else:
-            ratios = final_errors(other)[draws].mean(axis=1) / final_errors(model)[draws].mean(axis=1)
+            ratios = final_other[draws].mean(axis=1) / final_model[draws].mean(axis=1)
     ratios = ratios[~np.isnan(ratios)]
     if not ratios.size:
         return np.nan, np.nan
@@ -213,11 +220,6 @@ def ratio_interval(
     return float(low), float(high)
 
 
-def final_errors(errors: pd.DataFrame) -> np.ndarray:
-    """Of one curve's `answer_errors`: each environment's last error, in `within_step`'s order."""
-    return _by_environment(errors).to_numpy()[:, -1]
-
-
-def _environments(errors: pd.DataFrame) -> list[tuple[float, int]]:
-    """The (truth, seed) of every environment `within_step` reads, in its order."""
-    return [(float(truth), int(seed)) for truth, seed in _by_environment(errors).index]
+def _environments(wide: pd.DataFrame) -> list[tuple[float, int]]:
+    """The (truth, seed) of every environment of a curve as `_by_environment` gives it, in its order."""
+    return [(float(truth), int(seed)) for truth, seed in wide.index]
