@@ -332,8 +332,8 @@ def test_the_block_table_runs_the_next_seeds_and_counts_the_ratios_over_the_bar(
     # Told nothing needs 18 answers (over 1.25 x 14) on block 0 and never gets there on block 1.
     assert np.isnan(row["nothing"][1]) and row["nothing_over"] == 1.0 and row["model_over"] == 0.0
     # Blocks where neither learner gets within one step are left out of a share.
-    stochastic = table.loc[("stochastic", 0.0)]
-    assert np.isnan(stochastic["model_over"]) and stochastic["nothing_over"] == 0.0
+    distance = table.loc[("distance", 0.0)]
+    assert np.isnan(distance["model_over"]) and distance["nothing_over"] == 0.0
 
 
 def test_a_count_that_never_gets_there_is_over_any_that_does() -> None:

@@ -11,7 +11,7 @@ from hipref.learners.answer_models import ANSWER_KINDS, AnswerModel, model_famil
 from hipref.learners.bayes import BayesConfig, BayesLearner, PreferencePosterior, answer_column
 from hipref.learners.estimates import expected_success, most_expected, most_within
 from hipref.learners.pesi import PESIConfig, PESILearner
-from hipref.learners.queries import choose_pair, pair_scores
+from hipref.learners.queries import all_pairs, choose_pair, pair_scores, worth_asking
 from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.teachers.models import TeacherModel
 from hipref.teachers.preference import EQUAL, SKIP, PreferenceQuery, ScriptedPreferenceTeacher
@@ -166,6 +166,23 @@ def test_perfect_answers_with_chosen_queries_bisect_to_one_grid_step() -> None:
             query = learner.ask()
             learner.tell(query, teacher.answer(query))
         assert abs(learner.estimate() - truth) <= GRID.resolution
+
+
+def test_chosen_pairs_have_their_midpoint_within_the_beliefs_central_half() -> None:
+    # A belief spread evenly over [0.6, 0.8] m has its quartiles at 0.65 and 0.75 m.
+    posterior = PreferencePosterior(GRID, (AnswerModel(flip=0.1),))
+    cells = posterior.query_points
+    weights = ((cells >= 0.6) & (cells <= 0.8)).astype(float)
+    beliefs = [(posterior.models[0], weights / weights.sum())]
+    midpoints = GRID.values[all_pairs(GRID.size)].mean(axis=1)
+    asked = worth_asking(GRID, cells, beliefs)
+    assert asked is not None
+    half_step = GRID.resolution / 2 + 1e-9
+    assert midpoints[asked].min() >= 0.65 - half_step and midpoints[asked].max() <= 0.75 + half_step
+    assert np.any(np.isclose(midpoints[asked], 0.65)) and np.any(np.isclose(midpoints[asked], 0.75))
+    for seed in range(5):
+        first, second = choose_pair("information_gain", GRID, cells, beliefs, np.random.default_rng(seed))
+        assert abs((GRID.values[first] + GRID.values[second]) / 2 - 0.7) <= half_step
 
 
 def test_information_gain_asks_about_phi_not_about_the_teacher() -> None:
