@@ -249,7 +249,7 @@ def worth_asking(
         for share in ((1.0 - CENTRAL) / 2, (1.0 + CENTRAL) / 2)
     )
     midpoints = candidates.values[pairs].mean(axis=1)
-    spread = candidates.resolution * (0.5 + TIE)  # a midpoint half a step away is in, whatever its rounding
+    spread = candidates.resolution * (0.5 + 1e-9)  # a midpoint half a step away is in, whatever its rounding
     asked = np.flatnonzero((midpoints >= low - spread) & (midpoints <= high + spread))
     return asked if asked.size else None
 
