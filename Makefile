@@ -61,7 +61,7 @@ help:
 	@echo 'make pytest                   the tests of tests/ on every core (about 2 min)'
 	@echo 'make nbval                    checks the outputs of the committed notebooks (about 4 min)'
 	@echo 'make lab                      JupyterLab on notebooks/'
-	@echo 'make teach PARTICIPANT=P01    notebook 09 for participant P01 with Voila, no code: http://127.0.0.1:8866/ (PORT=...)'
+	@echo 'make teach PARTICIPANT=P01    notebook 09 for participant P01 with Voila, no code: http://127.0.0.1:8866/ (PORT=, DOMAIN=, TRUE_PARAMETER=, QUERIES=)'
 	@echo 'make bench                    the benchmarks of hipref/bench/, printing their figures'
 	@echo 'make readme                   the findings of README.md rewritten from the committed results/ (seconds)'
 	@echo 'make readme-check             checks the findings of README.md against the committed results/ (seconds)'
@@ -115,20 +115,27 @@ lab: install
 	$(VENV)/bin/jupyter lab --ServerApp.allow_root=True notebooks
 
 # Participant mode: notebook 09's participant cells served with Voila (hipref/teach/participant.py); the
-# conditions' query rules in the order the participant meets them, catch trials every CATCH_EVERY queries.
+# conditions' query rules in the order the participant meets them, QUERIES each, catch trials every CATCH_EVERY
+# queries, in DOMAIN's world with TRUE_PARAMETER (empty: three quarters up the range, 0.8 m or 17 kg).
 # The values reach the command through the environment, so an id is never read as shell code.
 PARTICIPANT ?=
 CONDITIONS ?= uniform information_gain
 CATCH_EVERY ?= 4
 PORT ?= 8866
+DOMAIN ?= wiping
+QUERIES ?= 12
+TRUE_PARAMETER ?=
 teach: export PARTICIPANT := $(PARTICIPANT)
 teach: export CONDITIONS := $(CONDITIONS)
 teach: export CATCH_EVERY := $(CATCH_EVERY)
 teach: export PORT := $(PORT)
+teach: export DOMAIN := $(DOMAIN)
+teach: export QUERIES := $(QUERIES)
+teach: export TRUE_PARAMETER := $(TRUE_PARAMETER)
 teach: install
 	@test -n "$$PARTICIPANT" || { echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
 	$(PY) -m hipref.teach.participant "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
-		--port "$$PORT"
+		--domain "$$DOMAIN" --queries "$$QUERIES" $${TRUE_PARAMETER:+--true-parameter "$$TRUE_PARAMETER"} --port "$$PORT"
 
 bench: install
 	$(PY) -m hipref.bench.physics

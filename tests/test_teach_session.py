@@ -21,7 +21,7 @@ import torch
 
 from hipref.learners.bayes import BayesLearner
 from hipref.learners.sysid import DESK_HEIGHT
-from hipref.teach import open_session
+from hipref.teach import open_session, participant
 from hipref.teach.answers import learner_estimates, per_participant
 from hipref.teach.app import (
     PREPARING,
@@ -517,7 +517,7 @@ def test_catch_trials_are_flagged_and_not_told_to_the_learner(results):
     records = lines(session.path)[1:]
     assert [r["catch"] for r in records] == [False, True, False, True]
     near, far = catch_pair(DESK_HEIGHT, config.true_parameter)
-    assert (near, far) == (0.7, 0.9)  # the truth against the range's end farthest from it (0.9 on a tie)
+    assert (near, far) == (0.8, 0.5)  # the truth against the range's end farthest from it (0.9 on a tie)
     assert all(r["candidates"] == [near, far] for r in records if r["catch"])
     assert all(r["label"] == 1 for r in records if r["catch"])  # the stand-in without flips: the truth
     # The learner heard only the learner's queries: the file without its catch trials rebuilds it.
@@ -540,15 +540,17 @@ def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(r
     assert "height of the desk" in text and "4 pairs in 2 part(s)" in text
     app.widget.children[1].click()  # start the practice
     shown = app.practice.teaching.current
-    assert shown.catch and shown.query.candidates == (0.7, 0.9)
+    assert shown.catch and shown.query.candidates == (0.8, 0.5)
     app.practice.press_as_scripted(shown.side_of(1))  # the wrong clip
-    assert "Not quite" in app.widget.children[0].value and "too high (0.9 m instead of 0.7 m)" in (
-        app.widget.children[0].value
-    )
+    feedback = app.widget.children[0].value
+    # Which clip was right and which way the other erred, but no value: the participant judges the motion.
+    assert "Not quite" in feedback and "the other with a guess too low." in feedback
+    assert "0.8" not in feedback and "0.5" not in feedback
     app.widget.children[1].click()
     for part in range(2):
         assert f"Part {part + 1} of 2" in app.widget.children[0].value
         condition = app.apps[part]
+        assert condition.status.value == "answered 0 of 2"  # nor the learner's running estimate
         while (query := condition.teaching.current) is not None:
             condition.press_as_scripted(query.side_of(0))
         if part == 0:
@@ -661,7 +663,7 @@ def test_the_server_does_not_outlive_a_killed_make_teach(tmp_path):
         pytest.fail("the server outlived its killed parent by 10 s")
 
 
-def test_make_teach_refuses_a_bad_id_or_a_port_in_use_in_one_line(capsys):
+def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(capsys):
     with pytest.raises(SystemExit) as stopped:
         participant_main(["x/y"])
     assert stopped.value.code == 2
@@ -677,6 +679,29 @@ def test_make_teach_refuses_a_bad_id_or_a_port_in_use_in_one_line(capsys):
     assert stopped.value.code == 2
     said = capsys.readouterr().err
     assert said.startswith(f"make teach: port {port} is in use") and said.count("\n") == 1
+    with pytest.raises(SystemExit) as stopped:
+        participant_main(["P4", "--port", "99999"])
+    assert stopped.value.code == 2
+    assert capsys.readouterr().err == "make teach: port must be a number from 1 to 65535, got 99999\n"
+
+
+def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_told(monkeypatch):
+    served: list[dict] = []
+    monkeypatch.setattr(participant, "participant_view", lambda _, parameters, out: served.append(parameters))
+    monkeypatch.setattr(participant, "serve", lambda command: None)
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = str(probe.getsockname()[1])
+    participant_main(["P5", "--port", port])
+    participant_main(["P5", "--port", port, "--domain", "pushing", "--queries", "5"])
+    participant_main(["P5", "--port", port, "--true-parameter", "0.55"])
+    # The learner starts at the range's middle (0.7 m, 14 kg): a world there would leave nothing to teach.
+    assert [(p["domain"], p["true_parameter"]) for p in served] == [
+        ("wiping", 0.8),
+        ("pushing", 17.0),
+        ("wiping", 0.55),
+    ]
+    assert served[1]["preference_queries"] == 5
 
 
 def test_conditions_without_a_participant_are_refused():

@@ -192,9 +192,14 @@ class PreferenceApp(AnswerPanel):
 
     KEYS = PREFERENCE_KEYS
 
-    def __init__(self, teaching: PreferenceTeaching, *, reveal_truth: bool = False) -> None:
+    def __init__(
+        self, teaching: PreferenceTeaching, *, reveal_truth: bool = False, show_estimate: bool = True
+    ) -> None:
         self.teaching = teaching
         self.reveal_truth = reveal_truth
+        # A participant is not shown the learner's running estimate: they would answer by the number
+        # instead of judging the motion.
+        self.show_estimate = show_estimate
         self.buttons = {answer: widgets.Button(description=LABELS[answer]) for answer in ANSWERS}
         for answer, button in self.buttons.items():
             button.on_click(lambda _, answer=answer: self.press(answer))
@@ -245,9 +250,11 @@ class PreferenceApp(AnswerPanel):
     def _status(self) -> str:
         teaching = self.teaching
         spec = domain_spec(teaching.config.domain)
+        text = f"answered {teaching.answered} of {teaching.config.preference_queries}"
+        if not self.show_estimate:
+            return html.escape(text)
         estimate = teaching.estimate()
-        text = f"answered {teaching.answered} of {teaching.config.preference_queries}; "
-        text += f"the learner's estimate of the {spec.parameter}: {estimate:.3f} {spec.unit}"
+        text += f"; the learner's estimate of the {spec.parameter}: {estimate:.3f} {spec.unit}"
         if self.reveal_truth:
             text += f" (truth {teaching.truth:.3f}, error {abs(estimate - teaching.truth):.3f} {spec.unit})"
         return html.escape(text)

@@ -58,6 +58,10 @@ Choose the clip where the robot does the task <b>better</b>: <b>◀ left</b>, <b
 then {queries} pairs in {parts} part(s). Some pairs are easy on purpose.
 Your answers are saved as you give them; you may close the window and come back.</p>
 """
+TRUTH_SHARE = 0.75
+"""Where a participant's world lies in the domain's range unless told (0.8 m, 17 kg): away from the middle,
+the learner's first estimate, so that the session has something to teach."""
+
 TASKS: dict[str, tuple[str, str, str]] = {
     "wiping": (
         "wipes a desk with a sponge",
@@ -152,7 +156,9 @@ class ParticipantApp:
             self._start_condition(0)
             return
         session = SessionFile(path, config.header(), fresh=True)
-        self.practice = PreferenceApp(PreferenceTeaching(config, session, render=self.render))
+        self.practice = PreferenceApp(
+            PreferenceTeaching(config, session, render=self.render), show_estimate=False
+        )
         self.practice.on_finished.append(self._practice_feedback)
         self.widget.children = [widgets.HTML("<h3>Practice pair</h3>"), self.practice.widget]
 
@@ -168,10 +174,11 @@ class ParticipantApp:
         wrong = {"wiping": ("too low", "too high"), "pushing": ("too light", "too heavy")}[self.config.domain]
         wrong_way = wrong[far > near]
         verdict = "Right" if record["answer"] == good else "Not quite"
+        # No value is named: a participant who knew the truth could answer by number, not by the motion.
         text = (
             f"<h3>{verdict}: the {good} clip was the better one.</h3><p>It was run with the right "
-            f"{spec.parameter}; the other with a guess {wrong_way} ({far:g} {spec.unit} instead of {near:g} "
-            f"{spec.unit}). Look for this difference in the pairs to come.</p>"
+            f"{spec.parameter}; the other with a guess {wrong_way}. Look for this difference in the pairs to "
+            "come.</p>"
         )
         self._screen(text, "Start", lambda: self._start_condition(0))
 
@@ -181,7 +188,7 @@ class ParticipantApp:
             return
         config = self.conditions[index]
         session = SessionFile(results_dir() / "sessions" / config.session_name, config.header())
-        app = PreferenceApp(PreferenceTeaching(config, session, render=self.render))
+        app = PreferenceApp(PreferenceTeaching(config, session, render=self.render), show_estimate=False)
         self.apps.append(app)
         part = f"<h3>Part {index + 1} of {len(self.conditions)}</h3>"
         if app.teaching.done:  # answered in an earlier visit
@@ -303,13 +310,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--domain", default="wiping", choices=list(TASKS))
     parser.add_argument(
         "--true-parameter", type=float, default=None,
-        help="the world's true parameter (default: the middle of the domain's range, 0.7 m or 14 kg)",
+        help="the world's true parameter (default: three quarters up the domain's range, 0.8 m or 17 kg)",
     )  # fmt: skip
     parser.add_argument("--port", type=int, default=8866)
     args = parser.parse_args(argv)
+    if not 1 <= args.port <= 65535:
+        refuse(f"port must be a number from 1 to 65535, got {args.port}")
     candidates = domain_spec(args.domain).candidates
-    middle = round((candidates.low + candidates.high) / 2, 6)
-    truth = middle if args.true_parameter is None else args.true_parameter
+    default = round(candidates.low + TRUTH_SHARE * (candidates.high - candidates.low), 6)
+    truth = default if args.true_parameter is None else args.true_parameter
     parameters = {
         "teacher": "person",
         "participant": args.participant,
