@@ -30,9 +30,10 @@ class TeachConfig:
     papermill and nbval run the notebook)."""
     domain: str = "wiping"
     """The preferences' world: 'wiping' (desk height) or 'pushing' (cube mass)."""
-    true_parameter: float = 0.7
+    true_parameter: float = 0.8
     """The environment's unknown parameter (m or kg), inside the domain's range; hidden from the person
-    unless `reveal_truth`."""
+    unless `reveal_truth`. Not the range's middle, where the learner starts: the session would have nothing
+    to teach."""
     seed: Annotated[int, Integer(0)] = 0
     """Seed of the queries, the layouts, the sides the candidates are shown on and the stand-in."""
     preference_queries: Annotated[int, Integer(1)] = 6
