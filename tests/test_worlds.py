@@ -154,9 +154,13 @@ def test_the_reset_parameter_is_the_one_simulated() -> None:
     assert info["param"] == 0.62 and env.task.height == pytest.approx(0.62)
 
 
-def test_rendering_without_gl_is_skipped_with_a_message() -> None:
+@pytest.mark.parametrize("backend", ["disable", "osmesa"])
+def test_rendering_without_gl_is_skipped_with_a_message(backend: str) -> None:
+    import ctypes.util
     import os
 
+    if backend == "osmesa" and ctypes.util.find_library("OSMesa"):
+        pytest.skip("libOSMesa is installed here: MUJOCO_GL=osmesa renders")
     script = (
         "from hipref.envs.wiping import WipingTask\n"
         "from hipref.sim.render import still_frame\n"
@@ -165,7 +169,7 @@ def test_rendering_without_gl_is_skipped_with_a_message() -> None:
     )
     result = subprocess.run(
         [sys.executable, "-c", script],
-        env={**os.environ, "MUJOCO_GL": "disable"},
+        env={**os.environ, "MUJOCO_GL": backend},
         capture_output=True,
         text=True,
         timeout=120,
@@ -173,6 +177,8 @@ def test_rendering_without_gl_is_skipped_with_a_message() -> None:
     )
     assert result.returncode == 0, result.stderr
     assert "Rendering skipped" in result.stdout
+    if backend == "osmesa":  # chosen, but its library is missing: said once, not a failed import
+        assert result.stderr.count("MUJOCO_GL=osmesa, but libOSMesa is not found: rendering is disabled") == 1
 
 
 @pytest.mark.parametrize("corner", [(-0.3, -0.1), (0.3, -0.1), (-0.3, 0.2), (0.3, 0.2)])
