@@ -22,6 +22,7 @@ import torch
 from hipref.learners.bayes import BayesLearner
 from hipref.learners.sysid import DESK_HEIGHT
 from hipref.teach import open_session, participant
+from hipref.teach import server as server_module
 from hipref.teach.answers import learner_estimates, per_participant
 from hipref.teach.app import (
     PREPARING,
@@ -642,7 +643,7 @@ def test_the_server_does_not_outlive_a_killed_make_teach(tmp_path):
         [
             sys.executable,
             "-c",
-            f"from hipref.teach.server import serve; serve([{sys.executable!r}, '-c', {server!r}])",
+            f"from hipref.teach.server import serve; serve([{sys.executable!r}, '-c', {server!r}], 9, '')",
         ]
     )
     try:
@@ -661,6 +662,16 @@ def test_the_server_does_not_outlive_a_killed_make_teach(tmp_path):
     else:
         os.kill(server_pid, signal.SIGKILL)
         pytest.fail("the server outlived its killed parent by 10 s")
+
+
+def test_make_teach_gives_the_address_once_the_server_listens_and_not_if_it_never_does(monkeypatch, capsys):
+    listening = iter([False, False, True])
+    monkeypatch.setattr(server_module, "port_in_use", lambda port: next(listening))
+    server_module.serve([sys.executable, "-c", "import time; time.sleep(0.5)"], 8866, "ready at 8866")
+    assert capsys.readouterr().out == "ready at 8866\n" and next(listening, None) is None
+    monkeypatch.setattr(server_module, "port_in_use", lambda port: False)
+    server_module.serve([sys.executable, "-c", "pass"], 8866, "ready at 8866")  # ended before listening
+    assert capsys.readouterr().out == ""
 
 
 def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(capsys):
@@ -688,7 +699,7 @@ def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(c
 def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_told(monkeypatch):
     served: list[dict] = []
     monkeypatch.setattr(participant, "participant_view", lambda _, parameters, out: served.append(parameters))
-    monkeypatch.setattr(participant, "serve", lambda command: None)
+    monkeypatch.setattr(participant, "serve", lambda command, port, ready: None)
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = str(probe.getsockname()[1])

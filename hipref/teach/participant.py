@@ -344,8 +344,12 @@ def main(argv: list[str] | None = None) -> None:
         view = participant_view(
             root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
         )
-        print(f"participant {args.participant}: http://127.0.0.1:{args.port}/", flush=True)
-        serve(voila_command(view, args.port))
+        print(f"participant {args.participant}: starting the server ...", flush=True)
+        serve(
+            voila_command(view, args.port),
+            args.port,
+            f"participant {args.participant}: http://127.0.0.1:{args.port}/",
+        )
 
 
 def refuse(reason: str) -> NoReturn:

@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 CULL_SECONDS, CULL_EVERY = 60, 15
@@ -38,11 +39,12 @@ PR_SET_PDEATHSIG = 1
 """Linux's prctl option: the signal a process gets when its parent dies."""
 
 
-def serve(command: list[str], grace: float = 10.0) -> None:
-    """Run the server until it ends or this process is interrupted (Ctrl-C, a kill); interrupted, the
-    server is asked to stop (SIGTERM: it shuts its kernels down and removes its files) and killed after
-    `grace` seconds if it has not. On Linux the server also gets SIGTERM when this process dies without a
-    word (SIGKILL, out of memory), so it never outlives it."""
+def serve(command: list[str], port: int, ready: str, grace: float = 10.0) -> None:
+    """Run the server until it ends or this process is interrupted (Ctrl-C, a kill), printing `ready` once
+    it listens on `port` (not before: a page opened earlier would be refused); interrupted, the server is
+    asked to stop (SIGTERM: it shuts its kernels down and removes its files) and killed after `grace`
+    seconds if it has not. On Linux the server also gets SIGTERM when this process dies without a word
+    (SIGKILL, out of memory), so it never outlives it."""
     parent = os.getpid()
     prctl = ctypes.CDLL(None, use_errno=True).prctl if sys.platform.startswith("linux") else None
 
@@ -56,6 +58,10 @@ def serve(command: list[str], grace: float = 10.0) -> None:
 
     server = subprocess.Popen(command, preexec_fn=end_with_parent)
     try:
+        while server.poll() is None and not port_in_use(port):
+            time.sleep(0.1)
+        if server.poll() is None:
+            print(ready, flush=True)
         server.wait()
     except KeyboardInterrupt:
         server.terminate()
