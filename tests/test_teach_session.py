@@ -696,7 +696,7 @@ def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(c
     assert capsys.readouterr().err == "make teach: port must be a number from 1 to 65535, got 99999\n"
 
 
-def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_told(monkeypatch):
+def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_told(results, monkeypatch):
     served: list[dict] = []
     monkeypatch.setattr(participant, "participant_view", lambda _, parameters, out: served.append(parameters))
     monkeypatch.setattr(participant, "serve", lambda command, port, ready: None)
@@ -713,6 +713,24 @@ def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_
         ("wiping", 0.55),
     ]
     assert served[1]["preference_queries"] == 5
+
+
+def test_a_second_server_for_one_participant_is_refused_naming_the_first(results, monkeypatch, capsys):
+    monkeypatch.setattr(participant, "participant_view", lambda _, parameters, out: out)
+    monkeypatch.setattr(participant, "serve", lambda command, port, ready: None)
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with participant.served_once("P6", 8870):  # the first server, still running
+        with pytest.raises(SystemExit) as stopped:
+            participant_main(["P6", "--port", str(port)])
+        assert stopped.value.code == 2
+        assert capsys.readouterr().err.startswith(
+            "make teach: participant P6 is served already (at http://127.0.0.1:8870/, pid"
+        )
+        participant_main(["P7", "--port", str(port)])  # another participant is served
+    assert not (results / "sessions" / "participant_P6.serving").exists()  # the first server ended
+    participant_main(["P6", "--port", str(port)])
 
 
 def test_conditions_without_a_participant_are_refused():

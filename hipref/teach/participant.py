@@ -21,13 +21,16 @@ the window comes back to the same server.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import fcntl
 import html
 import json
+import os
 import signal
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -340,7 +343,10 @@ def main(argv: list[str] | None = None) -> None:
     root = repo_root() or Path.cwd()
     # A kill (SIGTERM) ends the server as Ctrl-C does: Voila stopped, the temporary folder removed.
     signal.signal(signal.SIGTERM, signal.default_int_handler)
-    with tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder:
+    with (
+        served_once(args.participant, args.port),
+        tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder,
+    ):
         view = participant_view(
             root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
         )
@@ -350,6 +356,33 @@ def main(argv: list[str] | None = None) -> None:
             args.port,
             f"participant {args.participant}: http://127.0.0.1:{args.port}/",
         )
+
+
+@contextlib.contextmanager
+def served_once(participant: str, port: int) -> Iterator[None]:
+    """Hold `sessions/participant_<id>.serving` (an exclusive flock, which the system drops however the server
+    ends) while this server runs: a second server for the same participant is refused, naming the first."""
+    path = results_dir() / "sessions" / f"participant_{participant}.serving"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as error:
+        refuse(f"cannot write the sessions folder {path.parent}: {error.strerror}")
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        first = os.pread(descriptor, 128, 0).decode(errors="replace").strip() or "by another server"
+        os.close(descriptor)
+        refuse(
+            f"participant {participant} is served already ({first}): send them to that page, or stop it first"
+        )
+    os.ftruncate(descriptor, 0)
+    os.pwrite(descriptor, f"at http://127.0.0.1:{port}/, pid {os.getpid()}".encode(), 0)
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)
+        os.close(descriptor)
 
 
 def refuse(reason: str) -> NoReturn:
