@@ -22,7 +22,7 @@ def still_frame(model: mujoco.MjModel, data: mujoco.MjData, camera: str = "overv
             renderer.update_scene(data, camera=camera)
             return renderer.render().copy()
     except Exception as error:  # any GL failure means: no rendering on this machine
-        print(f"Rendering skipped: no OpenGL context available ({type(error).__name__}: {error}).")
+        _say_skipped(error)
         return None
 
 
@@ -35,6 +35,16 @@ def watching_camera(
     camera.lookat[:] = lookat
     camera.distance, camera.azimuth, camera.elevation = distance, azimuth, elevation
     return camera
+
+
+_SAID: list[bool] = []
+"""Holds True once this process has said why it renders nothing: the reason is printed once."""
+
+
+def _say_skipped(error: Exception) -> None:
+    if not _SAID:
+        print(f"Rendering skipped: no OpenGL context available ({type(error).__name__}: {error}).")
+        _SAID.append(True)
 
 
 _HELD = threading.local()
@@ -112,5 +122,5 @@ def clip_frames(
             frames.append(renderer.render().copy())
         return frames
     except Exception as error:  # any GL failure means: no rendering on this machine
-        print(f"Rendering skipped: no OpenGL context available ({type(error).__name__}: {error}).")
+        _say_skipped(error)
         return None
