@@ -583,6 +583,10 @@ def test_a_participant_who_comes_back_skips_the_practice_and_keeps_its_answer(re
     kept = practice.read_text()
     # The window closed after the practice; the participant comes back: straight to the first part.
     again = ParticipantApp(config, render=False)
+    assert (
+        "Welcome back" in again.widget.children[0].value and "practice" not in again.widget.children[0].value
+    )
+    assert again.widget.children[1].description == "Continue"
     again.widget.children[1].click()
     assert "Part 1 of 1" in again.widget.children[0].value and again.practice is None
     assert practice.read_text() == kept

@@ -57,10 +57,13 @@ motion. {symptom}</p>
 <p>You will see two clips side by side, looping: the same robot, run with two different guesses.
 Choose the clip where the robot does the task <b>better</b>: <b>◀ left</b>, <b>right ▶</b>, or
 <b>can't tell ▼</b> if you cannot see a difference. Keys ← → ↓ work while the pointer is over the clips.</p>
-<p>First one practice pair, with the right answer shown afterwards;
-then {queries} pairs in {parts} part(s). Some pairs are easy on purpose.
+<p>{plan} Some pairs are easy on purpose.
 Your answers are saved as you give them; you may close the window and come back.</p>
 """
+FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts} part(s)."
+COMING_BACK = "Welcome back: you go on where you stopped ({queries} pairs in {parts} part(s) in all)."
+"""The plan the instructions give: before the practice pair, or to a participant who answered it."""
+
 TRUTH_SHARE = 0.75
 """Where a participant's world lies in the domain's range unless told (0.8 m, 17 kg): away from the middle,
 the learner's first estimate, so that the session has something to teach."""
@@ -118,10 +121,11 @@ class ParticipantApp:
         self.practice: PreferenceApp | None = None
         task, parameter, symptom = TASKS[config.domain]
         queries = sum(c.preference_queries for c in self.conditions)
-        text = INSTRUCTIONS.format(
-            task=task, parameter=parameter, symptom=symptom, queries=queries, parts=len(self.conditions)
-        )
-        self._screen(text, "Start the practice pair", self._start_practice)
+        practice = practice_config(config)
+        back = _practised(results_dir() / "sessions" / "practice" / practice.session_name, practice)
+        plan = (COMING_BACK if back else FIRST_VISIT).format(queries=queries, parts=len(self.conditions))
+        text = INSTRUCTIONS.format(task=task, parameter=parameter, symptom=symptom, plan=plan)
+        self._screen(text, "Continue" if back else "Start the practice pair", self._start_practice)
 
     def _screen(self, text: str, button: str, then: Callable[[], None]) -> None:
         """`text` and a button that runs `then` once: pressed, it is disabled and a line says the next
