@@ -114,7 +114,7 @@ nbval: install
 lab: install
 	$(VENV)/bin/jupyter lab --ServerApp.allow_root=True notebooks
 
-# Participant mode: notebook 09's participant cells served with Voila (hipref/teach/participant.py); the
+# Participant mode: notebook 09's participant cells served with Voila (hipref/teach/make_teach.py); the
 # conditions' query rules in the order the participant meets them, QUERIES each, catch trials every CATCH_EVERY
 # queries, in DOMAIN's world with TRUE_PARAMETER (empty: three quarters up the range, 0.8 m or 17 kg).
 # The values reach the command through the environment, so an id is never read as shell code.
@@ -134,7 +134,7 @@ teach: export QUERIES := $(QUERIES)
 teach: export TRUE_PARAMETER := $(TRUE_PARAMETER)
 teach: install
 	@test -n "$$PARTICIPANT" || { echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
-	$(PY) -m hipref.teach.participant "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
+	$(PY) -m hipref.teach.make_teach "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
 		--domain "$$DOMAIN" --queries "$$QUERIES" $${TRUE_PARAMETER:+--true-parameter "$$TRUE_PARAMETER"} --port "$$PORT"
 
 bench: install

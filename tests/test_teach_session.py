@@ -21,7 +21,7 @@ import torch
 
 from hipref.learners.bayes import BayesLearner
 from hipref.learners.sysid import DESK_HEIGHT
-from hipref.teach import open_session, participant
+from hipref.teach import make_teach, open_session, participant
 from hipref.teach import server as server_module
 from hipref.teach.answers import learner_estimates, per_participant
 from hipref.teach.app import (
@@ -34,8 +34,8 @@ from hipref.teach.app import (
 from hipref.teach.config import TeachConfig
 from hipref.teach.dataset import read_sessions
 from hipref.teach.feedback import FeedbackTeaching
-from hipref.teach.participant import ParticipantApp
-from hipref.teach.participant import main as participant_main
+from hipref.teach.make_teach import main as participant_main
+from hipref.teach.participant import ParticipantApp, practice_config
 from hipref.teach.preferences import PreferenceTeaching, catch_pair
 from hipref.teach.recorded import RecordedPreferenceTeacher, replay, summary
 from hipref.teach.session import AnswerRefused, SessionFile, SessionLocked, SessionUnwritable
@@ -55,6 +55,13 @@ def results(tmp_path: Path, cache: Path, monkeypatch: pytest.MonkeyPatch) -> Pat
     monkeypatch.setenv("HIPREF_RESULTS_DIR", str(tmp_path / "results"))
     monkeypatch.setenv("HIPREF_CACHE_DIR", str(cache))
     return tmp_path / "results"
+
+
+def free_port() -> int:
+    """A port nothing listens on (that was free a moment ago)."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
 
 
 def states_equal(a: torch.nn.Module, b: torch.nn.Module) -> bool:
@@ -615,6 +622,22 @@ def test_a_start_button_acts_once_and_says_why_when_the_session_is_held(results,
     assert calls == [0, 1] and button.disabled
 
 
+def test_a_page_reloaded_while_the_practice_is_open_elsewhere_welcomes_back_without_a_traceback(
+    results, monkeypatch
+):
+    config = TeachConfig(**{**SMALL, "preference_queries": 1, "catch_every": 2}, participant="P10")
+
+    def held(path: Path, _: TeachConfig) -> bool:  # the earlier window's kernel still holds the practice
+        raise SessionLocked(f"{path.name} is open in another live session (pid 1 on host h)")
+
+    monkeypatch.setattr(participant, "_practised", held)
+    app = ParticipantApp(config, render=False)
+    text, button, status = app.widget.children
+    assert "Welcome back" in text.value and button.description == "Continue"
+    button.click()
+    assert "still open in an earlier window" in status.value and not button.disabled
+
+
 def test_a_start_button_that_fails_otherwise_says_so_and_can_be_pressed_again(results):
     config = TeachConfig(**{**SMALL, "preference_queries": 1, "catch_every": 2}, participant="P5")
     app = ParticipantApp(config, render=False)
@@ -698,15 +721,47 @@ def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(c
         participant_main(["P4", "--port", "99999"])
     assert stopped.value.code == 2
     assert capsys.readouterr().err == "make teach: port must be a number from 1 to 65535, got 99999\n"
+    with pytest.raises(SystemExit) as stopped:
+        participant_main(["P4", "--port", "abc"])
+    assert stopped.value.code == 2
+    assert capsys.readouterr().err == "make teach: argument --port: invalid int value: 'abc'\n"
+
+
+def test_make_teach_refuses_a_machine_that_cannot_render_the_clips(results, monkeypatch, capsys):
+    monkeypatch.setattr(make_teach, "why_no_gl", lambda: "RuntimeError: no EGL display")
+    with pytest.raises(SystemExit) as stopped:
+        participant_main(["P8", "--port", str(free_port())])
+    assert stopped.value.code == 2
+    assert capsys.readouterr().err.startswith(
+        "make teach: clips cannot be rendered here (RuntimeError: no EGL display), and a participant judges"
+    )
+
+
+def test_make_teach_refuses_a_participant_served_before_with_other_settings(results, monkeypatch, capsys):
+    monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)
+    monkeypatch.setattr(make_teach, "participant_view", lambda _, parameters, out: out)
+    monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
+    port = str(free_port())
+    practice = practice_config(TeachConfig(teacher="person", participant="P9", true_parameter=0.6))
+    SessionFile(results / "sessions" / "practice" / practice.session_name, practice.header()).close()
+    participant_main(["P9", "--port", port, "--true-parameter", "0.6"])  # the same settings: served
+    with pytest.raises(SystemExit) as stopped:
+        participant_main(["P9", "--port", port])  # the truth forgotten: 0.8, not 0.6
+    assert stopped.value.code == 2
+    said = capsys.readouterr().err
+    assert (
+        said.startswith("make teach: participant P9 was served with other settings (")
+        and "true_parameter" in said
+    )
+    assert said.count("\n") == 1
 
 
 def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_told(results, monkeypatch):
+    monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)  # rendering is tested apart
     served: list[dict] = []
-    monkeypatch.setattr(participant, "participant_view", lambda _, parameters, out: served.append(parameters))
-    monkeypatch.setattr(participant, "serve", lambda command, port, ready: None)
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = str(probe.getsockname()[1])
+    monkeypatch.setattr(make_teach, "participant_view", lambda _, parameters, out: served.append(parameters))
+    monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
+    port = str(free_port())
     participant_main(["P5", "--port", port])
     participant_main(["P5", "--port", port, "--domain", "pushing", "--queries", "5"])
     participant_main(["P5", "--port", port, "--true-parameter", "0.55"])
@@ -720,12 +775,11 @@ def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_
 
 
 def test_a_second_server_for_one_participant_is_refused_naming_the_first(results, monkeypatch, capsys):
-    monkeypatch.setattr(participant, "participant_view", lambda _, parameters, out: out)
-    monkeypatch.setattr(participant, "serve", lambda command, port, ready: None)
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    with participant.served_once("P6", 8870):  # the first server, still running
+    monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)  # rendering is tested apart
+    monkeypatch.setattr(make_teach, "participant_view", lambda _, parameters, out: out)
+    monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
+    port = free_port()
+    with make_teach.served_once("P6", 8870):  # the first server, still running
         with pytest.raises(SystemExit) as stopped:
             participant_main(["P6", "--port", str(port)])
         assert stopped.value.code == 2

@@ -167,6 +167,8 @@ def test_rendering_without_gl_is_skipped_with_a_message(backend: str) -> None:
         "task = WipingTask(); task.reset(0.7)\n"
         "assert still_frame(task.scene.model, task.scene.data) is None\n"
         "assert still_frame(task.scene.model, task.scene.data) is None\n"
+        "from hipref.sim.render import why_no_gl\n"
+        "assert why_no_gl() is not None\n"
     )
     result = subprocess.run(
         [sys.executable, "-c", script],

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import atexit
+import os
 import threading
 from collections.abc import Sequence
 
@@ -124,3 +125,18 @@ def clip_frames(
     except Exception as error:  # any GL failure means: no rendering on this machine
         _say_skipped(error)
         return None
+
+
+def why_no_gl() -> str | None:
+    """Why this process cannot render (None if it can): an empty scene rendered once, as a check before
+    anything depends on it."""
+    if os.environ.get("MUJOCO_GL", "").lower() == "disable":
+        return "MUJOCO_GL=disable: no GL library was found, or rendering was turned off"
+    try:
+        model = mujoco.MjModel.from_xml_string("<mujoco/>")
+        with mujoco.Renderer(model, height=8, width=8) as renderer:
+            renderer.update_scene(mujoco.MjData(model))
+            renderer.render()
+    except Exception as error:  # any GL failure means: no rendering on this machine
+        return f"{type(error).__name__}: {error}"
+    return None

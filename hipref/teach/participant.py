@@ -9,41 +9,28 @@ the participant and the order of the conditions; the practice answer is stored a
 `sessions/practice/`, out of the dataset of answers. A participant who comes back resumes where they
 stopped: the practice pair, once answered, and finished conditions are skipped.
 
-    python -m hipref.teach.participant ID [--conditions uniform information_gain] [--port 8866]
-
-(`make teach PARTICIPANT=ID`) writes the participant's view of notebook 09, its parameters cell set for
-the participant and only the cells tagged `participant` kept, to a temporary folder, and serves it with
-Voila (code cells hidden) on http://127.0.0.1:PORT until interrupted (Ctrl-C or a kill); a port already in
-use is refused. A page's kernel is shut down a minute after its window closes, so a participant who closes
-the window comes back to the same server.
+`participant_view` writes the participant's view of notebook 09, its parameters cell set for the participant
+and only the cells tagged `participant` kept, which `make teach` (`hipref.teach.make_teach`) serves.
 """
 
 from __future__ import annotations
 
-import argparse
-import contextlib
 import dataclasses
-import fcntl
 import html
 import json
-import os
-import signal
-import sys
-import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import ipywidgets as widgets
 from IPython.display import display
 
 from hipref.experiments.domains import domain_spec
-from hipref.learners.queries import QUERY_RULES
-from hipref.results import repo_root, results_dir
+from hipref.results import results_dir
 from hipref.teach.app import PreferenceApp
 from hipref.teach.config import TeachConfig
 from hipref.teach.preferences import PreferenceTeaching
-from hipref.teach.server import CULL_EVERY, CULL_SECONDS, port_in_use, serve, voila_command
+from hipref.teach.server import CULL_EVERY, CULL_SECONDS
 from hipref.teach.session import SessionFile, SessionLocked, SessionUnwritable
 
 TAG = "participant"
@@ -63,10 +50,6 @@ Your answers are saved as you give them; you may close the window and come back.
 FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts} part(s)."
 COMING_BACK = "Welcome back: you go on where you stopped ({queries} pairs in {parts} part(s) in all)."
 """The plan the instructions give: before the practice pair, or to a participant who answered it."""
-
-TRUTH_SHARE = 0.75
-"""Where a participant's world lies in the domain's range unless told (0.8 m, 17 kg): away from the middle,
-the learner's first estimate, so that the session has something to teach."""
 
 TASKS: dict[str, tuple[str, str, str]] = {
     "wiping": (
@@ -122,7 +105,10 @@ class ParticipantApp:
         task, parameter, symptom = TASKS[config.domain]
         queries = sum(c.preference_queries for c in self.conditions)
         practice = practice_config(config)
-        back = _practised(results_dir() / "sessions" / "practice" / practice.session_name, practice)
+        try:
+            back = _practised(results_dir() / "sessions" / "practice" / practice.session_name, practice)
+        except (SessionLocked, SessionUnwritable):  # a window still open holds it: the start button says so
+            back = True
         plan = (COMING_BACK if back else FIRST_VISIT).format(queries=queries, parts=len(self.conditions))
         text = INSTRUCTIONS.format(task=task, parameter=parameter, symptom=symptom, plan=plan)
         self._screen(text, "Continue" if back else "Start the practice pair", self._start_practice)
@@ -302,98 +288,3 @@ def participant_view(notebook: Path, parameters: dict[str, Any], out: Path) -> P
     content["metadata"].pop("widgets", None)
     out.write_text(json.dumps(content))
     return out
-
-
-def main(argv: list[str] | None = None) -> None:
-    formatter = argparse.RawDescriptionHelpFormatter
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=formatter)
-    parser.add_argument("participant", help="the participant's id (letters, digits, - and _)")
-    parser.add_argument(
-        "--conditions", nargs="+", default=["uniform", "information_gain"], choices=QUERY_RULES,
-        help="query rules in the order the participant meets them",
-    )  # fmt: skip
-    parser.add_argument("--queries", type=int, default=12, help="preference queries per condition")
-    parser.add_argument("--catch-every", type=int, default=4, help="every n-th query a catch trial")
-    parser.add_argument("--domain", default="wiping", choices=list(TASKS))
-    parser.add_argument(
-        "--true-parameter", type=float, default=None,
-        help="the world's true parameter (default: three quarters up the domain's range, 0.8 m or 17 kg)",
-    )  # fmt: skip
-    parser.add_argument("--port", type=int, default=8866)
-    args = parser.parse_args(argv)
-    if not 1 <= args.port <= 65535:
-        refuse(f"port must be a number from 1 to 65535, got {args.port}")
-    candidates = domain_spec(args.domain).candidates
-    default = round(candidates.low + TRUTH_SHARE * (candidates.high - candidates.low), 6)
-    truth = default if args.true_parameter is None else args.true_parameter
-    parameters = {
-        "teacher": "person",
-        "participant": args.participant,
-        "conditions": list(args.conditions),
-        "preference_queries": args.queries,
-        "catch_every": args.catch_every,
-        "domain": args.domain,
-        "true_parameter": truth,
-    }
-    try:
-        TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})  # bad values refused here
-    except ValueError as error:
-        refuse(str(error))
-    if port_in_use(args.port):
-        refuse(
-            f"port {args.port} is in use, by another `make teach` or another server: stop it, or serve "
-            f"this participant on another port (--port, `make teach PORT=...`)"
-        )
-    root = repo_root() or Path.cwd()
-    # A kill (SIGTERM) ends the server as Ctrl-C does: Voila stopped, the temporary folder removed.
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
-    with (
-        served_once(args.participant, args.port),
-        tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder,
-    ):
-        view = participant_view(
-            root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
-        )
-        print(f"participant {args.participant}: starting the server ...", flush=True)
-        serve(
-            voila_command(view, args.port),
-            args.port,
-            f"participant {args.participant}: http://127.0.0.1:{args.port}/",
-        )
-
-
-@contextlib.contextmanager
-def served_once(participant: str, port: int) -> Iterator[None]:
-    """Hold `sessions/participant_<id>.serving` (an exclusive flock, which the system drops however the server
-    ends) while this server runs: a second server for the same participant is refused, naming the first."""
-    path = results_dir() / "sessions" / f"participant_{participant}.serving"
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as error:
-        refuse(f"cannot write the sessions folder {path.parent}: {error.strerror}")
-    try:
-        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        first = os.pread(descriptor, 128, 0).decode(errors="replace").strip() or "by another server"
-        os.close(descriptor)
-        refuse(
-            f"participant {participant} is served already ({first}): send them to that page, or stop it first"
-        )
-    os.ftruncate(descriptor, 0)
-    os.pwrite(descriptor, f"at http://127.0.0.1:{port}/, pid {os.getpid()}".encode(), 0)
-    try:
-        yield
-    finally:
-        path.unlink(missing_ok=True)
-        os.close(descriptor)
-
-
-def refuse(reason: str) -> NoReturn:
-    """One line on stderr saying why the server is not started; exit status 2, as a usage error."""
-    print(f"make teach: {reason}", file=sys.stderr)
-    raise SystemExit(2)
-
-
-if __name__ == "__main__":
-    main()

@@ -1,0 +1,167 @@
+"""`make teach`: notebook 09's participant view served by Voila, after every setting is checked.
+
+    python -m hipref.teach.make_teach ID [--conditions uniform information_gain] [--queries 12]
+        [--catch-every 4] [--domain wiping] [--true-parameter 0.8] [--port 8866]
+
+(`make teach PARTICIPANT=ID`) writes the participant's view of notebook 09 (`participant_view`) to a
+temporary folder and serves it with Voila (code cells hidden) on http://127.0.0.1:PORT until interrupted
+(Ctrl-C or a kill), printing the address once Voila listens. Refused in one line, before anything is served:
+a bad value, a port in use or out of range, a second server for a participant already served, a participant
+whose session files were started with other settings (their answers would be set aside), and a machine that
+cannot render the clips. A page's kernel is shut down a minute after its window closes, so a participant who
+closes the window comes back to the same server.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import fcntl
+import os
+import signal
+import sys
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import NoReturn
+
+from hipref.experiments.domains import domain_spec
+from hipref.learners.queries import QUERY_RULES
+from hipref.results import repo_root, results_dir
+from hipref.sim.render import why_no_gl
+from hipref.teach.config import TeachConfig
+from hipref.teach.participant import TASKS, condition_configs, participant_view, practice_config
+from hipref.teach.server import port_in_use, serve, voila_command
+from hipref.teach.session import SessionFile, SessionLocked
+
+TRUTH_SHARE = 0.75
+"""Where a participant's world lies in the domain's range unless told (0.8 m, 17 kg): away from the middle,
+the learner's first estimate, so that the session has something to teach."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # a malformed value: one line, as every refusal
+        refuse(message)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """`make teach`: check every setting, then serve the participant's view until interrupted."""
+    parser = _Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("participant", help="the participant's id (letters, digits, - and _)")
+    parser.add_argument(
+        "--conditions", nargs="+", default=["uniform", "information_gain"], choices=QUERY_RULES,
+        help="query rules in the order the participant meets them",
+    )  # fmt: skip
+    parser.add_argument("--queries", type=int, default=12, help="preference queries per condition")
+    parser.add_argument("--catch-every", type=int, default=4, help="every n-th query a catch trial")
+    parser.add_argument("--domain", default="wiping", choices=list(TASKS))
+    parser.add_argument(
+        "--true-parameter", type=float, default=None,
+        help="the world's true parameter (default: three quarters up the domain's range, 0.8 m or 17 kg)",
+    )  # fmt: skip
+    parser.add_argument("--port", type=int, default=8866)
+    args = parser.parse_args(argv)
+    if not 1 <= args.port <= 65535:
+        refuse(f"port must be a number from 1 to 65535, got {args.port}")
+    candidates = domain_spec(args.domain).candidates
+    default = round(candidates.low + TRUTH_SHARE * (candidates.high - candidates.low), 6)
+    truth = default if args.true_parameter is None else args.true_parameter
+    parameters = {
+        "teacher": "person",
+        "participant": args.participant,
+        "conditions": list(args.conditions),
+        "preference_queries": args.queries,
+        "catch_every": args.catch_every,
+        "domain": args.domain,
+        "true_parameter": truth,
+    }
+    try:  # bad values are refused here
+        config = TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})
+    except ValueError as error:
+        refuse(str(error))
+    if port_in_use(args.port):
+        refuse(
+            f"port {args.port} is in use, by another `make teach` or another server: stop it, or serve "
+            f"this participant on another port (--port, `make teach PORT=...`)"
+        )
+    unavailable = why_no_gl()
+    if unavailable is not None:
+        refuse(
+            f"clips cannot be rendered here ({unavailable}), and a participant judges the clips: serve "
+            "from a machine with GL (the README's EGL packages)"
+        )
+    root = repo_root() or Path.cwd()
+    # A kill (SIGTERM) ends the server as Ctrl-C does: Voila stopped, the temporary folder removed.
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    with (
+        served_once(args.participant, args.port),
+        tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder,
+    ):
+        check_sessions(config)
+        view = participant_view(
+            root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
+        )
+        print(f"participant {args.participant}: starting the server ...", flush=True)
+        serve(
+            voila_command(view, args.port),
+            args.port,
+            f"participant {args.participant}: http://127.0.0.1:{args.port}/",
+        )
+
+
+def check_sessions(config: TeachConfig) -> None:
+    """Refuse a participant whose practice or condition files were started with other settings: served
+    anyway, the practice answer would be replaced and the first part refused after it."""
+    sessions = results_dir() / "sessions"
+    practice = practice_config(config)
+    files = [(sessions / "practice" / practice.session_name, practice)]
+    files += [(sessions / c.session_name, c) for c in condition_configs(config)]
+    for path, session_config in files:
+        if not path.exists():
+            continue
+        try:
+            SessionFile(path, session_config.header()).close()
+        except SessionLocked as error:
+            refuse(f"participant {config.participant}'s session is open elsewhere: {error}")
+        except ValueError as error:
+            refuse(
+                f"participant {config.participant} was served with other settings ({error}): serve them with "
+                "those, or give this session another id"
+            )
+
+
+@contextlib.contextmanager
+def served_once(participant: str, port: int) -> Iterator[None]:
+    """Hold `sessions/participant_<id>.serving` (an exclusive flock, which the system drops however the server
+    ends) while this server runs: a second server for the same participant is refused, naming the first."""
+    path = results_dir() / "sessions" / f"participant_{participant}.serving"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as error:
+        refuse(f"cannot write the sessions folder {path.parent}: {error.strerror}")
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        first = os.pread(descriptor, 128, 0).decode(errors="replace").strip() or "by another server"
+        os.close(descriptor)
+        refuse(
+            f"participant {participant} is served already ({first}): send them to that page, or stop it first"
+        )
+    os.ftruncate(descriptor, 0)
+    os.pwrite(descriptor, f"at http://127.0.0.1:{port}/, pid {os.getpid()}".encode(), 0)
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)
+        os.close(descriptor)
+
+
+def refuse(reason: str) -> NoReturn:
+    """One line on stderr saying why the server is not started; exit status 2, as a usage error."""
+    print(f"make teach: {reason}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+if __name__ == "__main__":
+    main()
