@@ -4,8 +4,8 @@ Feedback trains a high-level goal selector on a grid over the desk; noisy prefer
 system-identification model whose estimate parameterises the low-level force controller.
 
 Importing the package sets three environment variables where they are unset (`ATEN_CPU_CAPABILITY` and
-`MKL_CBWR`: `hipref.numerics`; `MUJOCO_GL`, below) and loads no numerical library; `import hipref.envs`
-registers the gymnasium environments.
+`MKL_CBWR`: `hipref.numerics`; `MUJOCO_GL`, below, also where it names a backend whose library is
+missing) and loads no numerical library; `import hipref.envs` registers the gymnasium environments.
 """
 
 import ctypes.util

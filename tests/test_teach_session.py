@@ -573,6 +573,7 @@ def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(r
         assert header["query_rule"] == rule and [a["catch"] for a in answers] == [False, True]
     table = read_sessions(sessions)  # the practice pair is not in the dataset of answers
     assert set(table["participant"]) == {"P1"} and len(table) == 4
+    assert set(table["teacher"]) == {"person"}  # a person's answers, which notebook 09's outputs leave out
     assert lines(sessions / "practice" / "participant_P1_practice.jsonl")[1]["answer"] == shown.side_of(1)
     # Coming back, the finished conditions are skipped to the closing screen.
     again = ParticipantApp(config, render=False)
@@ -694,11 +695,15 @@ def test_the_server_does_not_outlive_a_killed_make_teach(tmp_path):
 def test_make_teach_gives_the_address_once_the_server_listens_and_not_if_it_never_does(monkeypatch, capsys):
     listening = iter([False, False, True])
     monkeypatch.setattr(server_module, "port_in_use", lambda port: next(listening))
-    server_module.serve([sys.executable, "-c", "import time; time.sleep(0.5)"], 8866, "ready at 8866")
+    server_module.serve([sys.executable, "-c", "import time; time.sleep(2)"], 8866, "ready at 8866")
     assert capsys.readouterr().out == "ready at 8866\n" and next(listening, None) is None
     monkeypatch.setattr(server_module, "port_in_use", lambda port: False)
     server_module.serve([sys.executable, "-c", "pass"], 8866, "ready at 8866")  # ended before listening
     assert capsys.readouterr().out == ""
+    with pytest.raises(SystemExit) as stopped:  # failed by itself: said in one line, not a silent success
+        server_module.serve([sys.executable, "-c", "raise SystemExit(3)"], 8866, "ready at 8866")
+    assert stopped.value.code == 1
+    assert capsys.readouterr().err == "make teach: the server stopped with exit status 3 (its log is above)\n"
 
 
 def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(capsys):
@@ -739,6 +744,7 @@ def test_make_teach_refuses_a_machine_that_cannot_render_the_clips(results, monk
 
 def test_make_teach_refuses_a_participant_served_before_with_other_settings(results, monkeypatch, capsys):
     monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)
+    monkeypatch.setattr(make_teach.signal, "signal", lambda *_: None)
     monkeypatch.setattr(make_teach, "participant_view", lambda _, parameters, out: out)
     monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
     port = str(free_port())
@@ -758,6 +764,7 @@ def test_make_teach_refuses_a_participant_served_before_with_other_settings(resu
 
 def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_told(results, monkeypatch):
     monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)  # rendering is tested apart
+    monkeypatch.setattr(make_teach.signal, "signal", lambda *_: None)  # the test process keeps its handlers
     served: list[dict] = []
     monkeypatch.setattr(make_teach, "participant_view", lambda _, parameters, out: served.append(parameters))
     monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
@@ -776,6 +783,7 @@ def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_
 
 def test_a_second_server_for_one_participant_is_refused_naming_the_first(results, monkeypatch, capsys):
     monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)  # rendering is tested apart
+    monkeypatch.setattr(make_teach.signal, "signal", lambda *_: None)  # the test process keeps its handlers
     monkeypatch.setattr(make_teach, "participant_view", lambda _, parameters, out: out)
     monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
     port = free_port()
@@ -784,10 +792,10 @@ def test_a_second_server_for_one_participant_is_refused_naming_the_first(results
             participant_main(["P6", "--port", str(port)])
         assert stopped.value.code == 2
         assert capsys.readouterr().err.startswith(
-            "make teach: participant P6 is served already (at http://127.0.0.1:8870/, pid"
+            "make teach: participant P6 is served already (at http://127.0.0.1:8870/ on "
         )
         participant_main(["P7", "--port", str(port)])  # another participant is served
-    assert not (results / "sessions" / "participant_P6.serving").exists()  # the first server ended
+    assert (results / "sessions" / "participant_P6.serving").read_text() == ""  # the first server ended
     participant_main(["P6", "--port", str(port)])
 
 

@@ -191,6 +191,8 @@ def _check_answer(path: Path, number: int, record: dict[str, Any]) -> None:
 def _teacher(path: Path, header: dict[str, Any]) -> str:
     if "teacher" in header:
         return str(header["teacher"])
+    if header.get("participant"):  # `make teach`'s sessions: a person's
+        return "person"
     first = path.stem.split("_")[0]
     return first if first in TEACHERS else "unknown"
 

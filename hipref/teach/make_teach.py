@@ -19,6 +19,7 @@ import contextlib
 import fcntl
 import os
 import signal
+import socket
 import sys
 import tempfile
 from collections.abc import Iterator
@@ -90,6 +91,9 @@ def main(argv: list[str] | None = None) -> None:
             f"clips cannot be rendered here ({unavailable}), and a participant judges the clips: serve "
             "from a machine with GL (the README's EGL packages)"
         )
+    # Voila starts each kernel in the view's temporary folder: a relative results folder would be read
+    # there, and its answers deleted with it.
+    os.environ["HIPREF_RESULTS_DIR"] = str(results_dir().resolve())
     root = repo_root() or Path.cwd()
     # A kill (SIGTERM) ends the server as Ctrl-C does: Voila stopped, the temporary folder removed.
     signal.signal(signal.SIGTERM, signal.default_int_handler)
@@ -123,6 +127,8 @@ def check_sessions(config: TeachConfig) -> None:
             SessionFile(path, session_config.header()).close()
         except SessionLocked as error:
             refuse(f"participant {config.participant}'s session is open elsewhere: {error}")
+        except OSError as error:  # SessionUnwritable among them
+            refuse(f"participant {config.participant}'s session cannot be opened: {error}")
         except ValueError as error:
             refuse(
                 f"participant {config.participant} was served with other settings ({error}): serve them with "
@@ -148,12 +154,17 @@ def served_once(participant: str, port: int) -> Iterator[None]:
         refuse(
             f"participant {participant} is served already ({first}): send them to that page, or stop it first"
         )
+    except OSError as error:  # a folder whose file system cannot lock
+        os.close(descriptor)
+        refuse(f"cannot lock {path}: {error.strerror}")
     os.ftruncate(descriptor, 0)
-    os.pwrite(descriptor, f"at http://127.0.0.1:{port}/, pid {os.getpid()}".encode(), 0)
+    os.pwrite(
+        descriptor, f"at http://127.0.0.1:{port}/ on {socket.gethostname()}, pid {os.getpid()}".encode(), 0
+    )
     try:
         yield
-    finally:
-        path.unlink(missing_ok=True)
+    finally:  # emptied, not removed: a server waiting on this file must not lock one no longer there
+        os.ftruncate(descriptor, 0)
         os.close(descriptor)
 
 

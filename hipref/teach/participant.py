@@ -107,7 +107,7 @@ class ParticipantApp:
         practice = practice_config(config)
         try:
             back = _practised(results_dir() / "sessions" / "practice" / practice.session_name, practice)
-        except (SessionLocked, SessionUnwritable):  # a window still open holds it: the start button says so
+        except SessionLocked:  # a window still open holds it: the start button says so
             back = True
         plan = (COMING_BACK if back else FIRST_VISIT).format(queries=queries, parts=len(self.conditions))
         text = INSTRUCTIONS.format(task=task, parameter=parameter, symptom=symptom, plan=plan)

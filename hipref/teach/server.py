@@ -44,7 +44,8 @@ def serve(command: list[str], port: int, ready: str, grace: float = 10.0) -> Non
     it listens on `port` (not before: a page opened earlier would be refused); interrupted, the server is
     asked to stop (SIGTERM: it shuts its kernels down and removes its files) and killed after `grace`
     seconds if it has not. On Linux the server also gets SIGTERM when this process dies without a word
-    (SIGKILL, out of memory), so it never outlives it."""
+    (SIGKILL, out of memory), so it never outlives it. A server that fails by itself ends this with one line
+    and exit status 1."""
     parent = os.getpid()
     prctl = ctypes.CDLL(None, use_errno=True).prctl if sys.platform.startswith("linux") else None
 
@@ -63,10 +64,19 @@ def serve(command: list[str], port: int, ready: str, grace: float = 10.0) -> Non
         if server.poll() is None:
             print(ready, flush=True)
         server.wait()
-    except KeyboardInterrupt:
+    except BaseException as error:  # Ctrl-C, a kill, or anything else here: the server does not outlive this
         server.terminate()
         try:
             server.wait(timeout=grace)
         except subprocess.TimeoutExpired:
             server.kill()
             server.wait()
+        if not isinstance(error, KeyboardInterrupt):
+            raise
+        return
+    if server.returncode > 0:  # it failed by itself (a signal's negative status is a stop asked for)
+        print(
+            f"make teach: the server stopped with exit status {server.returncode} (its log is above)",
+            file=sys.stderr,
+        )
+        raise SystemExit(1)
