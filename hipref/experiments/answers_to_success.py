@@ -202,10 +202,10 @@ class AnswersConfig(SIStudy):
     the physics costs a hundred times what the answers alone do."""
     held_out_heights: NonEmptyTuple[float] = (0.68,)
     """True desk heights in m of the held-out wiping environments, each in [0.5, 0.9] and none of `heights`:
-    the answers part's headline claims replicated on truths the study does not tune on (full profile: 16)."""
+    the answers part's headline claims replicated on truths the study does not tune on (full profile: 30)."""
     held_out_masses: NonEmptyTuple[float] = (14.75,)
     """True cube masses in kg of the held-out pushing environments, each in [8, 20] and none of `masses`
-    (full profile: 16)."""
+    (full profile: 30)."""
     held_out_seeds: NonEmptyTuple[int] = (300,)
     """Seeds of the held-out environments, none below `seeds` (the grid's are 0 .. seeds - 1)."""
     held_out_episodes: Annotated[int, Integer(1)] = 40
