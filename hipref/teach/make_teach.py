@@ -31,7 +31,13 @@ from hipref.learners.queries import QUERY_RULES
 from hipref.results import repo_root, results_dir
 from hipref.sim.render import why_no_gl
 from hipref.teach.config import TeachConfig
-from hipref.teach.participant import TASKS, condition_configs, participant_view, practice_config
+from hipref.teach.participant import (
+    TASKS,
+    condition_configs,
+    participant_view,
+    practice_config,
+    practice_path,
+)
 from hipref.teach.server import port_in_use, serve, voila_command
 from hipref.teach.session import SessionFile, SessionLocked
 
@@ -116,10 +122,9 @@ def main(argv: list[str] | None = None) -> None:
 def check_sessions(config: TeachConfig) -> None:
     """Refuse a participant whose practice or condition files were started with other settings: served
     anyway, the practice answer would be replaced and the first part refused after it."""
-    sessions = results_dir() / "sessions"
     practice = practice_config(config)
-    files = [(sessions / "practice" / practice.session_name, practice)]
-    files += [(sessions / c.session_name, c) for c in condition_configs(config)]
+    files = [(practice_path(practice), practice)]
+    files += [(results_dir() / "sessions" / c.session_name, c) for c in condition_configs(config)]
     for path, session_config in files:
         if not path.exists():
             continue

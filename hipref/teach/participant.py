@@ -87,6 +87,11 @@ def practice_config(config: TeachConfig) -> TeachConfig:
     )
 
 
+def practice_path(practice: TeachConfig) -> Path:
+    """The practice session's file (`practice_config`): in `sessions/practice/`, out of the dataset."""
+    return results_dir() / "sessions" / "practice" / practice.session_name
+
+
 class ParticipantApp:
     """Instructions, a practice query with feedback, each condition's queries, a closing screen."""
 
@@ -106,7 +111,7 @@ class ParticipantApp:
         queries = sum(c.preference_queries for c in self.conditions)
         practice = practice_config(config)
         try:
-            back = _practised(results_dir() / "sessions" / "practice" / practice.session_name, practice)
+            back = _practised(practice_path(practice), practice)
         except SessionLocked:  # a window still open holds it: the start button says so
             back = True
         plan = (COMING_BACK if back else FIRST_VISIT).format(queries=queries, parts=len(self.conditions))
@@ -144,7 +149,7 @@ class ParticipantApp:
 
     def _start_practice(self) -> None:
         config = practice_config(self.config)
-        path = results_dir() / "sessions" / "practice" / config.session_name
+        path = practice_path(config)
         if _practised(path, config):  # in an earlier visit
             self._start_condition(0)
             return
