@@ -117,14 +117,15 @@ lab: install
 # Participant mode: notebook 09's participant cells served with Voila (hipref/teach/make_teach.py); the
 # conditions' query rules in the order the participant meets them, QUERIES each, catch trials every CATCH_EVERY
 # queries, in DOMAIN's world with TRUE_PARAMETER (empty: three quarters up the range, 0.8 m or 17 kg).
-# The values reach the command through the environment, so an id is never read as shell code.
-PARTICIPANT ?=
-CONDITIONS ?= uniform information_gain
-CATCH_EVERY ?= 4
-PORT ?= 8866
-DOMAIN ?= wiping
-QUERIES ?= 12
-TRUE_PARAMETER ?=
+# Each is set on make's command line; the shell's own variables of these names (PORT and DOMAIN are common)
+# are not read. The values reach the command through the environment, so an id is never read as shell code.
+PARTICIPANT =
+CONDITIONS = uniform information_gain
+CATCH_EVERY = 4
+PORT = 8866
+DOMAIN = wiping
+QUERIES = 12
+TRUE_PARAMETER =
 teach: export PARTICIPANT := $(PARTICIPANT)
 teach: export CONDITIONS := $(CONDITIONS)
 teach: export CATCH_EVERY := $(CATCH_EVERY)
