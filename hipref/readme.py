@@ -6,7 +6,7 @@
 of a section lives in `hipref/readme_<name>.md`; every number and verdict in it is a placeholder filled by
 `values`, each read from `results/data/` and `results/tables/` and decided by `hipref.verdicts`, as the
 notebooks do (the findings on noisy preferences in `hipref.readme_noise`, those beyond the paper in
-`hipref.readme_beyond`).
+`hipref.readme_beyond` and, notebook 12's, `hipref.readme_answers`).
 """
 
 from __future__ import annotations
@@ -24,9 +24,18 @@ import yaml
 from hipref import verdicts
 from hipref.envs.gridworld import WipingGrid
 from hipref.intervals import CONFIDENCE
-from hipref.readme_beyond import ran_with
+from hipref.readme_answers import values as answers
 from hipref.readme_beyond import values as beyond
-from hipref.readme_format import UNITS, WORDS, csv, interval, percent, significant_steps, slope_text
+from hipref.readme_format import (
+    UNITS,
+    WORDS,
+    csv,
+    interval,
+    percent,
+    ran_with,
+    significant_steps,
+    slope_text,
+)
 from hipref.readme_noise import values as noise_values
 from hipref.results import repo_root
 
@@ -195,6 +204,7 @@ def values(results: Path, root: Path) -> dict[str, str]:
         **_readings(results),
         **noise_values(results),
         **beyond(results),
+        **answers(results),
     }
 
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import ast
+import json
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -55,3 +58,26 @@ FINE_UNITS = {"wiping": (" mm", 1000.0, 2), "pushing": (" kg", 1.0, 3)}
 def percent(level: float) -> str:
     """'20 %': a share as the README writes it."""
     return f"{100 * level:.0f} %"
+
+
+def ran_with(results: Path, notebook: str) -> dict[str, Any]:
+    """The parameters the committed results of `notebook` were run with: its executed copy's parameters
+    cell, overridden by the cell papermill injected."""
+    cells = json.loads((results / "notebooks" / f"{notebook}.ipynb").read_text(encoding="utf-8"))["cells"]
+    out: dict[str, Any] = {}
+    for tag in ("parameters", "injected-parameters"):
+        for cell in cells:
+            if tag not in cell.get("metadata", {}).get("tags", []):
+                continue
+            for node in ast.parse("".join(cell["source"])).body:
+                if isinstance(node, ast.Assign | ast.AnnAssign) and node.value is not None:
+                    targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                    for target in targets:
+                        if isinstance(target, ast.Name):
+                            out[target.id] = ast.literal_eval(node.value)
+    return out
+
+
+def in_domains(values: dict[str, str]) -> str:
+    """'X in wiping and Y in pushing'."""
+    return f"{values['wiping']} in wiping and {values['pushing']} in pushing"

@@ -404,6 +404,13 @@ def test_chosen_queries_and_blind_learners_run_only_where_the_config_says() -> N
     assert {t for e, r, t in told if e == 0.4} == {"model"}
     assert {t for e, r, t in told if e == 0.0 and r == "information_gain"} == {"model", "kind", "nothing"}
     assert {c.episodes for c in config.answers_cells()} == {66}
+    # The true parameter once per task environment, on the same evaluations as the task's runs.
+    truths = config.truth_cells()
+    environments = {(c.domain, c.ground_truth, c.seed) for c in task}
+    assert sorted((c.run.domain, c.run.ground_truth, c.run.seed) for c in truths) == sorted(environments)
+    assert {(c.run.evaluated_at, c.run.eval_episodes) for c in truths} == {
+        (c.evaluated_at, c.eval_episodes) for c in task
+    }
 
 
 def test_the_held_out_replication_runs_the_claims_settings_on_its_own_environments_only() -> None:

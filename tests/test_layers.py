@@ -25,7 +25,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("envs",),
     ("experiments",),
     ("teach", "readme_format"),
-    ("readme_noise", "readme_beyond"),
+    ("readme_noise", "readme_beyond", "readme_answers"),
     ("readme",),
     ("bench",),
 )

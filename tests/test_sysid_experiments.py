@@ -148,6 +148,19 @@ def test_every_method_meets_the_same_evaluation_episodes():
     assert at_start[0] == at_start[1] == at_start[2]
 
 
+def test_the_true_parameter_meets_the_learners_evaluation_episodes():
+    # Before any answer the Bayesian learner's estimate is the middle of the range: at a truth there it is
+    # exact, so on the same episodes it succeeds exactly where the true parameter does, and OSI's does not.
+    cell = SIRun("wiping", "bayes", 0.7, seed=3, episodes=1, checkpoints=(0,), eval_episodes=4, data=TINY)
+    exact = si_run.run_at_truth(cell).set_index("metric").value
+    bayes = run_si(cell).set_index("metric").value
+    assert exact["param_error"] == bayes["param_error"] == 0.0
+    assert exact["success_rate"] == bayes["success_rate"] > 0.0
+    osi = run_si(dataclasses.replace(cell, method="osi")).set_index("metric").value
+    assert osi["param_error"] > 0.0
+    assert set(si_run.run_at_truth(cell).method) == {"true_parameter"}
+
+
 @pytest.mark.parametrize(
     "make",
     [

@@ -11,9 +11,11 @@ answered by the same teacher stream:
 - **The task** (MuJoCo, `hipref.experiments.si_run.run_si`): PESI and CO-PESI with uniform pairs (Algorithm
   2), the Bayesian learner with uniform and chosen queries, evaluated after 0, 5, 10, 20, 33, ... answers on
   the same evaluation episodes: the error of the estimate the controller gets and the success of the task
-  executed with it. PESI's update does not use a posterior to choose from, and a chosen query executes a
-  fresh clip per answer (uniform pairs replay the environment's clips): chosen queries for PESI were
-  measured once (no difference detected in its final error) and are left out.
+  executed with it; beside them the success with the true parameter on those episodes (method
+  'true_parameter', `run_at_truth`): what an exact estimate gets, the task's own failures. PESI's update
+  does not use a posterior to choose from, and a chosen query executes a fresh clip per answer (uniform
+  pairs replay the environment's clips): chosen queries for PESI were measured once (no difference detected
+  in its final error) and are left out.
 
 The Bayesian learner of the task part is not told the teacher's model; under uniform queries it asks
 exactly PESI's queries (the same seed and draws), so the two differ only in what they make of the answers.
@@ -31,7 +33,7 @@ from hipref.experiments.domains import DOMAINS, domain_spec, truth_grids
 from hipref.experiments.protocol import SIStudy
 from hipref.experiments.si_clips import run_streams
 from hipref.experiments.si_methods import BAYES_METHODS, COTEACHING_METHODS, METHODS
-from hipref.experiments.si_run import FineTuning, SIRun, run_si
+from hipref.experiments.si_run import FineTuning, SIRun, run_at_truth, run_si
 from hipref.learners.answer_models import TOLD, AnswerModel, hypotheses, told
 from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.pesi import PESIConfig
@@ -303,23 +305,48 @@ class AnswersConfig(SIStudy):
             for truth, seed in self.task_environments(domain)
         ]
 
+    def truth_cells(self) -> list[AtTruth]:
+        """The task part's reference: each environment's evaluation episodes with the true parameter."""
+        return [
+            AtTruth(
+                replace(
+                    self.run_cell(domain, "osi", truth, seed, checkpoints=self.checkpoints),
+                    episodes=self.checkpoints[-1],
+                )
+            )
+            for domain in self.domains
+            for truth, seed in self.task_environments(domain)
+        ]
 
-def run_cell(cell: SIRun | AnswersCell) -> pd.DataFrame:
-    """One cell of either part (a sweep cell function)."""
-    return run_answers(cell) if isinstance(cell, AnswersCell) else run_si(cell)
+
+@dataclass(frozen=True)
+class AtTruth:
+    """The task executed with the true parameter on the evaluation episodes of `run`'s environment
+    (`run_at_truth`): what an exact estimate gets there."""
+
+    run: SIRun
+
+
+def run_cell(cell: SIRun | AnswersCell | AtTruth) -> pd.DataFrame:
+    """One cell of either part, or the task part's reference (a sweep cell function)."""
+    if isinstance(cell, AnswersCell):
+        return run_answers(cell)
+    return run_at_truth(cell.run) if isinstance(cell, AtTruth) else run_si(cell)
 
 
 def run(config: AnswersConfig, **sweep: Any) -> pd.DataFrame:
     """Both parts' tidy rows, with the columns `part` ('task' or 'answers'), teacher, query_rule, told and
-    `grid` ('study', or 'held_out' for the held-out replication's answers) on every row. One sweep, the
-    task part's runs first: they take the longest."""
+    `grid` ('study', or 'held_out' for the held-out replication's answers) on every row but the true
+    parameter's (no teacher, no query: noise, teacher, query_rule and told empty). One sweep, the task
+    part's runs first: they take the longest."""
     config.pretrain(config.domains, **sweep)
     task, answers, held_out = config.task_cells(), config.answers_cells(), config.held_out_cells()
-    rows = run_sweep(run_cell, [*task, *answers, *held_out], desc="answers to success", **sweep)
+    cells = [*task, *config.truth_cells(), *answers, *held_out]
+    rows = run_sweep(run_cell, cells, desc="answers to success", **sweep)
     held_out_seeds = set(config.held_out_seeds)
     rows["grid"] = np.where(rows["seed"].isin(held_out_seeds), "held_out", "study")
     rows["part"] = rows["part"].fillna("task")
-    rows["teacher"] = rows["teacher"].fillna("mistake")
-    rows["query_rule"] = rows["query_rule"].fillna("uniform")
-    rows["told"] = rows["told"].fillna("nothing")
+    asked = rows["method"] != "true_parameter"
+    for column, default in {"teacher": "mistake", "query_rule": "uniform", "told": "nothing"}.items():
+        rows.loc[asked, column] = rows.loc[asked, column].fillna(default)
     return rows

@@ -84,6 +84,12 @@ def estimator(learner: Learner | None, model: SIModel) -> Estimator:
     return Estimator(learner.estimates, learner.mode)
 
 
+def at_truth(ground_truth: float) -> Estimator:
+    """The true parameter itself as the estimate: what an exact estimate achieves on the same episodes (the
+    task can fail even so)."""
+    return Estimator(lambda slices: np.full(len(slices), ground_truth), lambda tau: ground_truth)
+
+
 def evaluate(task: Task, model: Estimator, episodes: list[Episode], ground_truth: float) -> dict[str, float]:
     """A frozen learner on one checkpoint's episodes: its errors by three read-outs, and the task's success.
 

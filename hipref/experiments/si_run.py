@@ -29,7 +29,13 @@ from hipref.envs.task import Task, observer
 from hipref.experiments.domains import domain_spec
 from hipref.experiments.low_level import make_task
 from hipref.experiments.si_clips import LearningSpec, learning_clips, run_streams
-from hipref.experiments.si_evaluation import EvaluationSpec, estimator, evaluate, evaluation_episodes
+from hipref.experiments.si_evaluation import (
+    EvaluationSpec,
+    at_truth,
+    estimator,
+    evaluate,
+    evaluation_episodes,
+)
 from hipref.experiments.si_methods import BAYES_METHODS, METHODS, PAIR_METHODS, Learner, make_learner
 from hipref.experiments.si_pretraining import PretrainData, pretrained_model
 from hipref.learners.answer_models import TOLD
@@ -220,6 +226,18 @@ Evaluation = list[tuple[int, str, float]]
 """One evaluation's rows: (learning episodes so far, metric, value)."""
 
 
+def _evaluation_spec(cell: SIRun) -> EvaluationSpec:
+    return EvaluationSpec(
+        cell.domain,
+        cell.ground_truth,
+        cell.seed,
+        cell.eval_episodes,
+        cell.eval_slices,
+        cell.data.history,
+        cell.data.low_level.key,
+    )
+
+
 def _learn_and_evaluate(cell: SIRun) -> list[Evaluation]:
     """Algorithm 2 between the evaluations of `cell`, and each evaluation's rows."""
     model = pretrained_model(cell.domain, cell.data)
@@ -230,16 +248,7 @@ def _learn_and_evaluate(cell: SIRun) -> list[Evaluation]:
         teacher = _teacher(cell, teacher_seq)
         learner = make_learner(cell, model, integer_seed(learner_seq))
         evaluated_at = cell.evaluated_at
-        spec = EvaluationSpec(
-            cell.domain,
-            truth,
-            cell.seed,
-            cell.eval_episodes,
-            cell.eval_slices,
-            cell.data.history,
-            cell.data.low_level.key,
-        )
-        checkpoints = evaluation_episodes(task, spec, len(evaluated_at))
+        checkpoints = evaluation_episodes(task, _evaluation_spec(cell), len(evaluated_at))
         observe = None if learner is None else _observer(cell, task, model, learn_seq)
         evaluations: list[Evaluation] = []
         learned = 0
@@ -253,6 +262,31 @@ def _learn_and_evaluate(cell: SIRun) -> list[Evaluation]:
                 metrics |= {"filter_precision": quality[0], "filter_recall": quality[1]}
             evaluations.append([(episode, k, v) for k, v in metrics.items() if np.isfinite(v)])
     return evaluations
+
+
+def run_at_truth(cell: SIRun) -> pd.DataFrame:
+    """The task executed with the true parameter on `cell`'s evaluation episodes, at each of its
+    evaluations (a sweep cell function; rows of method 'true_parameter', noise NaN: no teacher is asked):
+    the success an exact estimate gets on the very episodes every learner of the environment meets. Only
+    the cell's environment and evaluations are read."""
+    with one_thread():
+        task = make_task(cell.domain, cell.data.low_level)
+        checkpoints = evaluation_episodes(task, _evaluation_spec(cell), len(cell.evaluated_at))
+        exact = at_truth(cell.ground_truth)
+        rows = [
+            (episode, metric, value)
+            for episode, episodes in zip(cell.evaluated_at, checkpoints, strict=True)
+            for metric, value in evaluate(task, exact, episodes, cell.ground_truth).items()
+        ]
+    return tidy_rows(
+        rows,
+        domain=cell.domain,
+        method="true_parameter",
+        noise=np.nan,
+        seed=cell.seed,
+        ground_truth=round(cell.ground_truth, 6),
+        n_candidates=cell.n_candidates,
+    )
 
 
 def run_si(cell: SIRun) -> pd.DataFrame:

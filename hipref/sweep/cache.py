@@ -60,6 +60,7 @@ NOT_IN_ROWS: tuple[str, ...] = (
     "intervals.py",
     "verdicts.py",
     "readme.py",
+    "readme_answers.py",
     "readme_beyond.py",
     "readme_format.py",
     "readme_noise.py",
