@@ -21,6 +21,7 @@ import torch
 
 from hipref.learners.bayes import BayesLearner
 from hipref.learners.sysid import DESK_HEIGHT
+from hipref.notebook import config_from_parameters
 from hipref.teach import make_teach, open_session, participant
 from hipref.teach import server as server_module
 from hipref.teach.answers import learner_estimates, per_participant
@@ -760,6 +761,43 @@ def test_make_teach_refuses_a_participant_served_before_with_other_settings(resu
         and "true_parameter" in said
     )
     assert said.count("\n") == 1
+
+
+def test_make_teach_checks_the_very_headers_the_served_notebook_writes(results, monkeypatch, tmp_path):
+    # `check_sessions` builds its headers from the command's settings and TeachConfig's defaults; the kernel
+    # builds them from the served view's parameters cell: the two must agree, or a returning participant is
+    # refused (or a changed setting let through).
+    monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)  # rendering is tested apart
+    monkeypatch.setattr(make_teach.signal, "signal", lambda *_: None)  # the test process keeps its handlers
+    views: list[Path] = []
+
+    def view(notebook: Path, parameters: dict, out: Path) -> Path:
+        views.append(participant.participant_view(notebook, parameters, tmp_path / f"view{len(views)}.ipynb"))
+        return views[-1]
+
+    monkeypatch.setattr(make_teach, "participant_view", view)
+    monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
+    checked: list[TeachConfig] = []
+    monkeypatch.setattr(make_teach, "check_sessions", checked.append)
+    port = str(free_port())
+    participant_main(["P8", "--port", port])
+    other = ["--domain", "pushing", "--queries", "5", "--conditions", "uniform"]
+    participant_main(["P8", "--port", port, *other])
+    assert len(views) == len(checked) == 2
+    for path, command in zip(views, checked, strict=True):
+        cells = json.loads(path.read_text())["cells"]
+        source = next("".join(c["source"]) for c in cells if "parameters" in c["metadata"].get("tags", []))
+        namespace: dict = {}
+        exec(compile(source, "parameters", "exec", dont_inherit=True), namespace)  # the kernel's first cell
+        del namespace["__builtins__"]
+        kernel = config_from_parameters(TeachConfig, namespace)
+        for of_kernel, of_command in zip(
+            [practice_config(kernel), *participant.condition_configs(kernel)],
+            [practice_config(command), *participant.condition_configs(command)],
+            strict=True,
+        ):
+            assert of_kernel.header() == of_command.header()
+            assert of_kernel.session_name == of_command.session_name
 
 
 def test_a_participants_world_lies_away_from_the_learners_first_estimate_unless_told(results, monkeypatch):
