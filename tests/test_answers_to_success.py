@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
+from hipref.bench.held_out_steps import truths as drawn_truths
 from hipref.bench.model_choice import TEACHERS, block_table, share_over, split_table, teacher_family
 from hipref.experiments.answers_tables import (
     answers_interval,
@@ -24,6 +27,7 @@ from hipref.experiments.answers_to_success import (
     answer_counts,
     run_answers,
 )
+from hipref.experiments.domains import DOMAINS
 from hipref.experiments.si_run import FineTuning, SIRun
 from hipref.learners.answer_models import model_family, told
 from hipref.learners.pesi import PESIConfig
@@ -434,3 +438,18 @@ def test_the_held_out_replication_runs_the_claims_settings_on_its_own_environmen
         for t in ("model", "kind", "nothing")
     }
     assert {c.episodes for c in cells} == {12}
+
+
+def test_the_benchmarks_held_out_truths_are_drawn_over_the_range_and_not_notebook_12s() -> None:
+    params = Path(__file__).parents[1] / "params" / "full" / "12_answers_to_success.yaml"
+    full = yaml.safe_load(params.read_text())
+    named_in = {"wiping": ("heights", "held_out_heights"), "pushing": ("masses", "held_out_masses")}
+    for domain, grids in named_in.items():
+        phi = DOMAINS[domain].candidates
+        named = {float(v) for grid in grids for v in full[grid]}
+        drawn = drawn_truths(domain, 200, 0)
+        assert drawn == drawn_truths(domain, 200, 0)  # the same draw: the same truths
+        assert len(set(drawn)) == 200 and not set(drawn) & named
+        assert phi.low <= min(drawn) < phi.low + 0.05 * (phi.high - phi.low)
+        assert phi.high - 0.05 * (phi.high - phi.low) < max(drawn) <= phi.high
+        assert not set(drawn) & set(drawn_truths(domain, 200, 1))  # another draw: other truths

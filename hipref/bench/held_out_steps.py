@@ -1,0 +1,70 @@
+"""Notebook 12's held-out replication at a scale the notebook cannot afford (no physics).
+
+    python -m hipref.bench.held_out_steps --truths 200
+
+runs the Bayesian learner under information gain, answered by the paper's teacher at 0 and 20 % flips, told
+the teacher's model, its kind only or nothing, on `--truths` true parameters per domain drawn uniformly over
+the range by `--draw` (real numbers: none is a truth of notebook 12 or of a test) x one seed (`--seed`, 900 by
+default: no notebook, test or other benchmark uses it), `--episodes` answers each (40, as notebook 12's
+held-out runs). It prints `answers_to_step` (the answers after which the learner is within one step of Phi in
+90 % of the environments for good, its 95 % interval from resampling the truths, and the Shannon floor) and
+`told_against_chosen` (told nothing's answers over told the model's, with their paired interval): the bars of
+notebook 12's held-out claims (at most 10 answers with perfect answers, 30 at 20 % flips, told the kind; told
+nothing at most 1.25 times told the model) read on many more environments than its 30 per domain. The runs
+share the two cores; nothing is written to disk.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pandas as pd
+
+from hipref.experiments.answers_tables import answers_to_step, told_against_chosen
+from hipref.experiments.answers_to_success import STEP_BOUNDS, AnswersCell, run_answers
+from hipref.experiments.domains import DOMAINS
+from hipref.learners.answer_models import TOLD
+
+
+def truths(domain: str, count: int, draw: int) -> tuple[float, ...]:
+    """`count` true parameters of `domain` drawn uniformly over its range from the stream `draw`: real
+    numbers, so none is a truth a notebook or a test names."""
+    phi = DOMAINS[domain].candidates
+    rng = np.random.default_rng([draw, list(DOMAINS).index(domain)])
+    return tuple(float(v) for v in np.sort(rng.uniform(phi.low, phi.high, count)))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--truths", type=int, default=200, help="true parameters per domain (at least 2)")
+    parser.add_argument("--seed", type=int, default=900, help="the environments' seed")
+    parser.add_argument("--draw", type=int, default=0, help="the stream the truths are drawn from")
+    parser.add_argument("--episodes", type=int, default=40, help="answers per run")
+    args = parser.parse_args()
+    if args.truths < 2 or args.episodes < 1:
+        parser.error(
+            f"--truths must be at least 2 and --episodes at least 1, got {args.truths}, {args.episodes}"
+        )
+    cells = [
+        AnswersCell(domain, truth, args.seed, "mistake", noise, "information_gain", told, args.episodes)
+        for domain in DOMAINS
+        for noise in STEP_BOUNDS
+        for told in TOLD
+        for truth in truths(domain, args.truths, args.draw)
+    ]
+    start = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=os.cpu_count()) as pool:
+        rows = pd.concat(pool.map(run_answers, cells, chunksize=16), ignore_index=True)
+    seconds = time.perf_counter() - start
+    steps = answers_to_step(rows)
+    print(f"{len(cells)} runs of {args.episodes} answers in {seconds:.0f} s; {args.truths} truths per domain")
+    print(steps.round(2).to_string(index=False))
+    print(told_against_chosen(steps, rows).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+
+
+if __name__ == "__main__":
+    main()
