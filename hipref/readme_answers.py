@@ -12,7 +12,7 @@ import pandas as pd
 
 from hipref import verdicts
 from hipref.experiments.answers_tables import CONSISTENT, answers_to_step, told_against_chosen
-from hipref.experiments.answers_to_success import MODEL_CHOICE_BOUND, STEP_BOUNDS
+from hipref.experiments.answers_to_success import MODEL_CHOICE_BOUND, STEP_BOUNDS, SUCCESS_SHORTFALL
 from hipref.experiments.domains import DOMAINS
 from hipref.readme_format import UNITS, WORDS, in_domains, interval, percent, ran_with
 
@@ -98,6 +98,9 @@ def values(results: Path) -> dict[str, str]:
             f"{share.loc[share['answers'] == checkpoint, 'bayes_answers'].iloc[0]:g}"
         )
         chosen = task[(task["domain"] == domain) & (task["query_rule"] == "information_gain")]
+        exact = task[(task["domain"] == domain) & (task["method"] == "true_parameter")]
+        truth = exact[(exact["metric"] == "success_rate") & (exact["episode"] == SUCCESS_AFTER)]
+        truth_success[domain] = f"{truth['value'].mean():.2f}"
         for noise, key in ((0.0, "0"), (FLIPS, "20")):
             at = chosen[(chosen["noise"] == noise) & (chosen["episode"] == SUCCESS_AFTER)]
             rate = at[(at["method"] == "bayes") & (at["metric"] == "success_rate")]["value"].to_numpy()
@@ -107,7 +110,6 @@ def values(results: Path) -> dict[str, str]:
                 f"{rate.mean():.2f} (CI {margin.low + bar:.2f}-{margin.high + bar:.2f}: "
                 f"{verdicts.better(margin, lower_is_better=False)} against the {bar:g} bar)"
             )
-            exact = task[(task["domain"] == domain) & (task["method"] == "true_parameter")]
             gap = verdicts.paired_difference(
                 pd.concat([at, exact]),
                 metric="success_rate",
@@ -115,9 +117,8 @@ def values(results: Path) -> dict[str, str]:
                 baseline="true_parameter",
                 episode=SUCCESS_AFTER,
             )
-            truth = exact[(exact["metric"] == "success_rate") & (exact["episode"] == SUCCESS_AFTER)]
-            truth_success[domain] = f"{truth['value'].mean():.2f}"
-            truth_gap[(domain, key)] = interval(gap, "", 2)
+            matched = verdicts.within(gap, -SUCCESS_SHORTFALL, np.inf)
+            truth_gap[(domain, key)] = f"{interval(gap, '', 2)}: {matched}"
             if noise == 0.0:
                 # PESI asks Algorithm 2's uniform pairs only.
                 pesi = uniform[(uniform["method"] == "pesi") & (uniform["metric"] == "success_rate")]
@@ -134,6 +135,7 @@ def values(results: Path) -> dict[str, str]:
         out[f"nb12_success{key}"] = in_domains({d: success[(d, key)] for d in DOMAINS})
         out[f"nb12_truth_gap{key}"] = in_domains({d: truth_gap[(d, key)] for d in DOMAINS})
     out["nb12_truth_success"] = in_domains(truth_success)
+    out["nb12_shortfall"] = f"{SUCCESS_SHORTFALL:.2f}"
     out["nb12_pesi_success"] = in_domains(pesi_success)
     out["nb12_prior"] = in_domains(prior)
     out.update(_model_choice(steps, rows))

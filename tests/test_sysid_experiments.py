@@ -17,7 +17,8 @@ from hipref.experiments import si_methods, si_pretraining, si_run
 from hipref.experiments.n_candidates import NCandidatesConfig
 from hipref.experiments.protocol import SIStudy
 from hipref.experiments.r2_noise import R2Config
-from hipref.experiments.si_evaluation import EvaluationSpec, evaluation_episodes
+from hipref.experiments.si_evaluation import Episode, EvaluationSpec, evaluation_episodes
+from hipref.experiments.si_evaluation import evaluate as si_evaluate
 from hipref.experiments.si_pretraining import (
     PretrainCell,
     PretrainData,
@@ -148,16 +149,32 @@ def test_every_method_meets_the_same_evaluation_episodes():
     assert at_start[0] == at_start[1] == at_start[2]
 
 
-def test_the_true_parameter_meets_the_learners_evaluation_episodes():
-    # Before any answer the Bayesian learner's estimate is the middle of the range: at a truth there it is
-    # exact, so on the same episodes it succeeds exactly where the true parameter does, and OSI's does not.
+def test_the_true_parameter_meets_the_learners_evaluation_episodes(monkeypatch):
+    # Every episode the true parameter is executed in is one a learner of the same environment meets (and
+    # another seed's are others); before any answer the Bayesian learner's estimate is the middle of the
+    # range, exact at a truth there, so on those episodes it succeeds exactly where the true parameter does.
+    met: list[list[Episode]] = []
+
+    def evaluate(task, model, episodes, ground_truth):
+        met.append(episodes)
+        return si_evaluate(task, model, episodes, ground_truth)
+
+    monkeypatch.setattr(si_run, "evaluate", evaluate)
     cell = SIRun("wiping", "bayes", 0.7, seed=3, episodes=1, checkpoints=(0,), eval_episodes=4, data=TINY)
     exact = si_run.run_at_truth(cell).set_index("metric").value
     bayes = run_si(cell).set_index("metric").value
+    si_run.run_at_truth(dataclasses.replace(cell, seed=4))
+    at_truth, learner, other_seed = met
+
+    def same(a: list[Episode], b: list[Episode]) -> bool:
+        return all(
+            np.array_equal(x.slices, y.slices) and all(map(np.array_equal, x.layout, y.layout))
+            for x, y in zip(a, b, strict=True)
+        )
+
+    assert same(at_truth, learner) and not same(at_truth, other_seed)
     assert exact["param_error"] == bayes["param_error"] == 0.0
-    assert exact["success_rate"] == bayes["success_rate"] > 0.0
-    osi = run_si(dataclasses.replace(cell, method="osi")).set_index("metric").value
-    assert osi["param_error"] > 0.0
+    assert exact["success_rate"] == bayes["success_rate"]
     assert set(si_run.run_at_truth(cell).method) == {"true_parameter"}
 
 

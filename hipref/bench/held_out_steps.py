@@ -11,31 +11,36 @@ held-out runs). It prints `answers_to_step` (the answers after which the learner
 `told_against_chosen` (told nothing's answers over told the model's, with their paired interval): the bars of
 notebook 12's held-out claims (at most 10 answers with perfect answers, 30 at 20 % flips, told the kind; told
 nothing at most 1.25 times told the model) read on many more environments than its 30 per domain. The runs
-share the two cores; nothing is written to disk.
+share the local cores (`hipref.sweep.run_sweep`, nothing cached); nothing is written to disk.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-import pandas as pd
 
 from hipref.experiments.answers_tables import answers_to_step, told_against_chosen
 from hipref.experiments.answers_to_success import STEP_BOUNDS, AnswersCell, run_answers
 from hipref.experiments.domains import DOMAINS
 from hipref.learners.answer_models import TOLD
+from hipref.sweep import NO_CACHE, run_sweep
 
 
 def truths(domain: str, count: int, draw: int) -> tuple[float, ...]:
     """`count` true parameters of `domain` drawn uniformly over its range from the stream `draw`: real
-    numbers, so none is a truth a notebook or a test names."""
+    numbers, so none is a truth a notebook or a test names, and distinct to the 6 decimals the rows keep (a
+    value that rounds to one already drawn is drawn again), so no two environments are read as one."""
     phi = DOMAINS[domain].candidates
     rng = np.random.default_rng([draw, list(DOMAINS).index(domain)])
-    return tuple(float(v) for v in np.sort(rng.uniform(phi.low, phi.high, count)))
+    values = list(rng.uniform(phi.low, phi.high, count))
+    while len({round(v, 6) for v in values}) < count:
+        kept: dict[float, float] = {}
+        for v in values:
+            kept.setdefault(round(v, 6), v)
+        values = [*kept.values(), *rng.uniform(phi.low, phi.high, count - len(kept))]
+    return tuple(float(v) for v in sorted(values))
 
 
 def main() -> None:
@@ -57,8 +62,7 @@ def main() -> None:
         for truth in truths(domain, args.truths, args.draw)
     ]
     start = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=os.cpu_count()) as pool:
-        rows = pd.concat(pool.map(run_answers, cells, chunksize=16), ignore_index=True)
+    rows = run_sweep(run_answers, cells, cache_dir=NO_CACHE, desc="held-out answers")
     seconds = time.perf_counter() - start
     steps = answers_to_step(rows)
     print(f"{len(cells)} runs of {args.episodes} answers in {seconds:.0f} s; {args.truths} truths per domain")

@@ -58,6 +58,10 @@ learner told its kind, not its flip rate)."""
 MODEL_CHOICE_BOUND = 1.25
 """The claims' most answers (or final error) of the learner told nothing against the one told the model."""
 
+SUCCESS_SHORTFALL = 0.10
+"""The claims' most the task's success with the Bayesian learner's estimate may fall below its success with
+the true parameter on the same episodes (notebook 10's margin for a learned low level against its expert)."""
+
 FLIP_RATE = Range(0.0, 0.5 - 1e-9)
 """A flip rate of the paper's teacher: at 0.5 its answers would tell nothing."""
 
@@ -335,10 +339,10 @@ def run_cell(cell: SIRun | AnswersCell | AtTruth) -> pd.DataFrame:
 
 
 def run(config: AnswersConfig, **sweep: Any) -> pd.DataFrame:
-    """Both parts' tidy rows, with the columns `part` ('task' or 'answers'), teacher, query_rule, told and
-    `grid` ('study', or 'held_out' for the held-out replication's answers) on every row but the true
-    parameter's (no teacher, no query: noise, teacher, query_rule and told empty). One sweep, the task
-    part's runs first: they take the longest."""
+    """Both parts' tidy rows, with the columns `part` ('task' or 'answers') and `grid` ('study', or 'held_out'
+    for the held-out replication's answers) on every row, and teacher, query_rule and told on every row but
+    the true parameter's (no teacher is asked: its noise, teacher, query_rule and told are empty). One sweep,
+    the task part's runs first: they take the longest."""
     config.pretrain(config.domains, **sweep)
     task, answers, held_out = config.task_cells(), config.answers_cells(), config.held_out_cells()
     cells = [*task, *config.truth_cells(), *answers, *held_out]
