@@ -453,3 +453,7 @@ def test_the_benchmarks_held_out_truths_are_drawn_over_the_range_and_not_noteboo
         assert phi.low <= min(drawn) < phi.low + 0.05 * (phi.high - phi.low)
         assert phi.high - 0.05 * (phi.high - phi.low) < max(drawn) <= phi.high
         assert not set(drawn) & set(drawn_truths(domain, 200, 1))  # another draw: other truths
+    # Distinct as the rows keep them (6 decimals), so two environments are never read as one: 5,000 draws over
+    # 0.4 m would round alike about 30 times without the redraw.
+    many = drawn_truths("wiping", 5000, 0)
+    assert len({round(v, 6) for v in many}) == len(many) == 5000
