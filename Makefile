@@ -119,6 +119,7 @@ lab: install
 # queries, in DOMAIN's world with TRUE_PARAMETER (empty: three quarters up the range, 0.8 m or 17 kg).
 # Each is set on make's command line; the shell's own variables of these names (PORT and DOMAIN are common)
 # are not read. The values reach the command through the environment, so an id is never read as shell code.
+SHELL_PARTICIPANT := $(if $(filter environment,$(origin PARTICIPANT)),$(PARTICIPANT))
 PARTICIPANT =
 CONDITIONS = uniform information_gain
 CATCH_EVERY = 4
@@ -133,8 +134,11 @@ teach: export PORT := $(PORT)
 teach: export DOMAIN := $(DOMAIN)
 teach: export QUERIES := $(QUERIES)
 teach: export TRUE_PARAMETER := $(TRUE_PARAMETER)
+teach: export SHELL_PARTICIPANT := $(SHELL_PARTICIPANT)
 teach: install
-	@test -n "$$PARTICIPANT" || { echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
+	@test -n "$$PARTICIPANT" || { test -z "$$SHELL_PARTICIPANT" || \
+		echo "make teach: PARTICIPANT=$$SHELL_PARTICIPANT is set in the shell, which make teach does not read" >&2; \
+		echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
 	$(PY) -m hipref.teach.make_teach "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
 		--domain "$$DOMAIN" --queries "$$QUERIES" $${TRUE_PARAMETER:+--true-parameter "$$TRUE_PARAMETER"} --port "$$PORT"
 

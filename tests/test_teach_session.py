@@ -707,6 +707,29 @@ def test_make_teach_gives_the_address_once_the_server_listens_and_not_if_it_neve
     assert capsys.readouterr().err == "make teach: the server stopped with exit status 3 (its log is above)\n"
 
 
+def _make_teach(env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    """`make teach` without its install step (`-o install`), in the checkout, with `env`."""
+    command = ["make", "-s", "-o", "install", "teach"]
+    root = Path(__file__).resolve().parents[1]
+    return subprocess.run(command, cwd=root, env=env, capture_output=True, text=True, timeout=60)
+
+
+def test_make_teach_says_a_participant_set_in_the_shell_is_not_read():
+    # make's own PARTICIPANT (empty) wins over the shell's; the command says so instead of only "missing",
+    # and the shell's value, shell code or not, is printed, never run.
+    env = {**os.environ, "PARTICIPANT": "P01; echo ran"}
+    done = _make_teach(env)
+    assert (done.returncode, done.stdout) == (2, "")
+    assert done.stderr.splitlines()[:2] == [
+        "make teach: PARTICIPANT=P01; echo ran is set in the shell, which make teach does not read",
+        "make teach PARTICIPANT=<id>: the participant id is missing",
+    ]
+    env.pop("PARTICIPANT")
+    done = _make_teach(env)
+    assert done.returncode == 2
+    assert done.stderr.splitlines()[0] == "make teach PARTICIPANT=<id>: the participant id is missing"
+
+
 def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(capsys):
     with pytest.raises(SystemExit) as stopped:
         participant_main(["x/y"])
