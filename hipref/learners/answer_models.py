@@ -24,6 +24,7 @@ rounding decides them.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 from typing import Annotated
@@ -78,6 +79,13 @@ class AnswerModel:
         distances = np.abs(offsets)
         out[..., :n] = _RULES[self.kind](self, offsets, distances, out)
         return with_flip(out, self.flip)
+
+
+@functools.lru_cache(maxsize=256)
+def rule_of(model: AnswerModel) -> AnswerModel:
+    """`model` without its flip: the rule it applies before flipping (kept per model, as query rules and
+    posteriors ask for it at every answer)."""
+    return replace(model, flip=0.0)
 
 
 def with_flip(probabilities: np.ndarray, flip: float) -> np.ndarray:

@@ -25,16 +25,22 @@ from __future__ import annotations
 
 import operator
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
 import torch
-from scipy.special import logsumexp
 
-from hipref.learners.answer_models import EQUAL_COLUMN, SKIP_COLUMN, AnswerModel, model_family, with_flip
+from hipref.learners.answer_models import (
+    EQUAL_COLUMN,
+    SKIP_COLUMN,
+    AnswerModel,
+    model_family,
+    rule_of,
+    with_flip,
+)
 from hipref.learners.estimates import ESTIMATES, SuccessCurve, check_success_curve, read_estimate
-from hipref.learners.queries import QUERY_RULES, choose_pair, pair_table
+from hipref.learners.queries import QUERY_RULES, cells_key, choose_pair, pair_table
 from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.teachers.preference import EQUAL, NoLabel, PreferenceQuery, preference_label_vector
 from hipref.validation import Integer, OneOf, check_fields, check_int
@@ -71,6 +77,7 @@ class PreferencePosterior:
         """What query rules score on: the half steps' ends (every pair midpoint) and centres. Every point
         strictly inside a half step has the same flip-model likelihood for any pair, so its centre stands
         for all of it."""
+        self._cells_key = cells_key(self.cells)
         index = np.arange(self.cells.size)
         self._query_index = 2 * (index // half) + (index % half != 0)
         self.stretches = _stretches(self.cells, half)
@@ -98,12 +105,12 @@ class PreferencePosterior:
             column = {0: 1, 1: 0}.get(column, column)
         size = self.candidates.size
         pair = i * size - i * (i + 1) // 2 + (j - i - 1)
-        rows = []
-        for model in self.models:
-            table = pair_table(self.candidates, self.cells, model)
-            kept = np.flatnonzero(table.outcomes == column)
-            rows.append(table.probs[pair, kept[0]] if kept.size else np.zeros(self.cells.size))
-        return np.stack(rows)
+        rows = np.zeros((len(self.models), self.cells.size))
+        for row, model in zip(rows, self.models, strict=True):
+            table = pair_table(self.candidates, self._cells_key, model)
+            if (kept := table.row[column]) >= 0:
+                row[:] = table.probs[pair, kept]
+        return rows
 
     def _computed_probabilities(self, candidates: np.ndarray, column: int) -> np.ndarray:
         offsets = (candidates[None, :] - self.cells[:, None]) / (self.candidates.high - self.candidates.low)
@@ -111,7 +118,7 @@ class PreferencePosterior:
         rules: dict[AnswerModel, np.ndarray] = {}
         rows = []
         for model in self.models:
-            rule = replace(model, flip=0.0)
+            rule = rule_of(model)
             if rule not in rules:
                 rules[rule] = rule.probabilities(offsets)
             rows.append(with_flip(rules[rule], model.flip)[:, column])
@@ -123,7 +130,7 @@ class PreferencePosterior:
         with np.errstate(divide="ignore"):
             log_p = np.log(self._probabilities(values, column))
         total = self.log_likelihood + log_p
-        if not np.isfinite(logsumexp(total + self.log_model_prior[:, None])):
+        if not np.isfinite(total).any():
             raise ValueError(
                 f"the answer {column} to {tuple(values)} is impossible under every answer model given the "
                 "answers before it (a teacher model that never errs, contradicted)"
@@ -132,11 +139,17 @@ class PreferencePosterior:
         self.answers.append((values, column))
 
     def joint(self, log_prior: np.ndarray | None = None) -> np.ndarray:
-        """Pr(m, phi | answers) as (models, cells), summing to one; `log_prior` over the cells (uniform)."""
+        """Pr(m, phi | answers) as (models, cells), summing to one; `log_prior` over the cells (uniform).
+        Normalised as scipy.special.logsumexp normalises, to the bit (the k largest terms apart: log1p of the
+        rest's sum over k, plus log k), without its array-API dispatch, which costs more than the sum."""
         log_w = self.log_likelihood + self.log_model_prior[:, None]
         if log_prior is not None:
             log_w = log_w + log_prior[None, :]
-        return np.exp(log_w - logsumexp(log_w))
+        peak = log_w.max()
+        top = log_w == peak
+        k = top.sum(dtype=np.float64)
+        rest = np.exp(np.where(top, -np.inf, log_w) - peak).sum()
+        return np.exp(log_w - (np.log1p(rest / k) + np.log(k) + peak))
 
     def phi(self, log_prior: np.ndarray | None = None) -> np.ndarray:
         """Pr(phi | answers) over the cells, the answer models averaged by their posterior."""

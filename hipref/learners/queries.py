@@ -93,12 +93,11 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 from scipy.special import entr
 
-from hipref.learners.answer_models import AnswerModel
+from hipref.learners.answer_models import AnswerModel, rule_of
 from hipref.learners.sysid import CandidateSet
 from hipref.validation import check_choice
 
@@ -124,10 +123,14 @@ bisection asks at the median, and a pair far from it is asked only because some 
 weighed, predicts its answer poorly everywhere."""
 
 
+@functools.lru_cache(maxsize=16)
 def all_pairs(size: int) -> np.ndarray:
-    """Every pair (i, j), i < j, of `size` candidates: shape (size (size - 1) / 2, 2)."""
+    """Every pair (i, j), i < j, of `size` candidates: shape (size (size - 1) / 2, 2); read-only, built once
+    per size."""
     first, second = np.triu_indices(size, k=1)
-    return np.stack([first, second], axis=1)
+    pairs = np.stack([first, second], axis=1)
+    pairs.flags.writeable = False
+    return pairs
 
 
 class PairTable:
@@ -141,6 +144,9 @@ class PairTable:
         kept = probs.any(axis=(0, 1))
         self.outcomes = np.flatnonzero(kept)
         """Which of the four answers (first, second, skip, equal) the model can give."""
+        self.row = np.full(4, -1)
+        """Per answer column (first, second, skip, equal), its index among `outcomes`, -1 if never given."""
+        self.row[self.outcomes] = np.arange(self.outcomes.size)
         self.probs = np.ascontiguousarray(probs[..., kept].transpose(0, 2, 1))  # (P, outcomes, C)
         self.entropy = entr(probs[..., kept]).sum(axis=-1)  # (P, C)
         exchanged = np.array([1, 0, 2, 3])[self.outcomes]
@@ -153,9 +159,15 @@ def _table(candidates: CandidateSet, cells: bytes, model: AnswerModel) -> PairTa
     return PairTable(candidates, np.frombuffer(cells, dtype=np.float64), model)
 
 
-def pair_table(candidates: CandidateSet, cells: np.ndarray, model: AnswerModel) -> PairTable:
-    """The table of (candidates, cells, model), built on first use and kept for the process."""
-    return _table(candidates, np.ascontiguousarray(cells, dtype=np.float64).tobytes(), model)
+def pair_table(candidates: CandidateSet, cells: np.ndarray | bytes, model: AnswerModel) -> PairTable:
+    """The table of (candidates, cells, model), built on first use and kept for the process; `cells` may be
+    given as their float64 bytes (`cells_key`), which a caller asking often keeps."""
+    return _table(candidates, cells if isinstance(cells, bytes) else cells_key(cells), model)
+
+
+def cells_key(cells: np.ndarray) -> bytes:
+    """The cells as `pair_table` keys its tables."""
+    return np.ascontiguousarray(cells, dtype=np.float64).tobytes()
 
 
 def pair_scores(
@@ -210,7 +222,7 @@ def _mixed(
     kept: dict[AnswerModel, np.ndarray] = {}
     flipped: dict[AnswerModel, np.ndarray] = {}
     for model, weights in beliefs:
-        rule = replace(model, flip=0.0)
+        rule = rule_of(model)
         kept[rule] = kept.get(rule, np.zeros(cells.size)) + (1.0 - model.flip) * weights
         flipped[rule] = flipped.get(rule, np.zeros(cells.size)) + model.flip * weights
     tables = {rule: pair_table(candidates, cells, rule) for rule in kept}

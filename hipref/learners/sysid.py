@@ -7,6 +7,7 @@ and later fine-tuned with preferences (pesi.py, coteaching.py).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Annotated
@@ -50,8 +51,9 @@ class CandidateSet:
 
     @property
     def values(self) -> np.ndarray:
-        """The candidates in increasing order (linspace, so both ends are exact)."""
-        return np.linspace(self.low, self.high, self.size)
+        """The candidates in increasing order (linspace, so both ends are exact); read-only, computed once
+        per set."""
+        return _values(self.low, self.high, self.size)
 
     def normalise(self, parameter: np.ndarray | float) -> np.ndarray | float:
         """Map parameter units to [0, 1] over the range, so losses weigh height and mass alike."""
@@ -69,6 +71,13 @@ class CandidateSet:
         ):
             raise ValueError(f"value must be a candidate of {self}, got {value!r}")
         return index
+
+
+@functools.lru_cache(maxsize=64)
+def _values(low: float, high: float, size: int) -> np.ndarray:
+    values = np.linspace(low, high, size)
+    values.flags.writeable = False
+    return values
 
 
 DESK_HEIGHT = CandidateSet(low=0.5, high=0.9, resolution=0.01)
