@@ -118,8 +118,9 @@ lab: install
 # conditions' query rules in the order the participant meets them, QUERIES each, catch trials every CATCH_EVERY
 # queries, in DOMAIN's world with TRUE_PARAMETER (empty: three quarters up the range, 0.8 m or 17 kg).
 # Each is set on make's command line; the shell's own variables of these names (PORT and DOMAIN are common)
-# are not read. The values reach the command through the environment, so an id is never read as shell code.
-SHELL_PARTICIPANT := $(if $(filter environment,$(origin PARTICIPANT)),$(PARTICIPANT))
+# are not read. The values reach the command through the environment as given ($(value)), so an id is never
+# read as make's or the shell's code.
+SHELL_PARTICIPANT := $(if $(filter environment,$(origin PARTICIPANT)),$(value PARTICIPANT))
 PARTICIPANT =
 CONDITIONS = uniform information_gain
 CATCH_EVERY = 4
@@ -127,17 +128,17 @@ PORT = 8866
 DOMAIN = wiping
 QUERIES = 12
 TRUE_PARAMETER =
-teach: export PARTICIPANT := $(PARTICIPANT)
-teach: export CONDITIONS := $(CONDITIONS)
-teach: export CATCH_EVERY := $(CATCH_EVERY)
-teach: export PORT := $(PORT)
-teach: export DOMAIN := $(DOMAIN)
-teach: export QUERIES := $(QUERIES)
-teach: export TRUE_PARAMETER := $(TRUE_PARAMETER)
-teach: export SHELL_PARTICIPANT := $(SHELL_PARTICIPANT)
+teach: override export PARTICIPANT := $(value PARTICIPANT)
+teach: override export CONDITIONS := $(value CONDITIONS)
+teach: override export CATCH_EVERY := $(value CATCH_EVERY)
+teach: override export PORT := $(value PORT)
+teach: override export DOMAIN := $(value DOMAIN)
+teach: override export QUERIES := $(value QUERIES)
+teach: override export TRUE_PARAMETER := $(value TRUE_PARAMETER)
+teach: override export SHELL_PARTICIPANT := $(value SHELL_PARTICIPANT)
 teach: install
 	@test -n "$$PARTICIPANT" || { test -z "$$SHELL_PARTICIPANT" || \
-		echo "make teach: PARTICIPANT=$$SHELL_PARTICIPANT is set in the shell, which make teach does not read" >&2; \
+		printf 'make teach: PARTICIPANT=%s is set in the shell, which make teach does not read\n' "$$SHELL_PARTICIPANT" >&2; \
 		echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
 	$(PY) -m hipref.teach.make_teach "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
 		--domain "$$DOMAIN" --queries "$$QUERIES" $${TRUE_PARAMETER:+--true-parameter "$$TRUE_PARAMETER"} --port "$$PORT"

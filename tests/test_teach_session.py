@@ -707,27 +707,36 @@ def test_make_teach_gives_the_address_once_the_server_listens_and_not_if_it_neve
     assert capsys.readouterr().err == "make teach: the server stopped with exit status 3 (its log is above)\n"
 
 
-def _make_teach(env: dict[str, str]) -> subprocess.CompletedProcess[str]:
-    """`make teach` without its install step (`-o install`), in the checkout, with `env`."""
-    command = ["make", "-s", "-o", "install", "teach"]
+def _make_teach(env: dict[str, str], *settings: str) -> subprocess.CompletedProcess[str]:
+    """`make teach` with `settings` on its command line, without its install step (`-o install`), in the
+    checkout, with `env` but an outer make's flags (a `make -j2` or `make pytest X=...` around the tests)."""
+    env = {k: v for k, v in env.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEOVERRIDES")}
+    command = ["make", "-s", "-o", "install", "teach", *settings]
     root = Path(__file__).resolve().parents[1]
     return subprocess.run(command, cwd=root, env=env, capture_output=True, text=True, timeout=60)
 
 
-def test_make_teach_says_a_participant_set_in_the_shell_is_not_read():
+def test_make_teach_says_a_participant_set_in_the_shell_is_not_read(tmp_path):
     # make's own PARTICIPANT (empty) wins over the shell's; the command says so instead of only "missing",
-    # and the shell's value, shell code or not, is printed, never run.
-    env = {**os.environ, "PARTICIPANT": "P01; echo ran"}
+    # and prints the shell's value as it is: neither make nor the shell runs it.
+    ran = tmp_path / "ran"
+    given = f"P01; touch {ran}; $(shell touch {ran}) a\\cb"
+    env = {**os.environ, "PARTICIPANT": given}
     done = _make_teach(env)
     assert (done.returncode, done.stdout) == (2, "")
     assert done.stderr.splitlines()[:2] == [
-        "make teach: PARTICIPANT=P01; echo ran is set in the shell, which make teach does not read",
+        f"make teach: PARTICIPANT={given} is set in the shell, which make teach does not read",
         "make teach PARTICIPANT=<id>: the participant id is missing",
     ]
     env.pop("PARTICIPANT")
     done = _make_teach(env)
     assert done.returncode == 2
     assert done.stderr.splitlines()[0] == "make teach PARTICIPANT=<id>: the participant id is missing"
+    # Given on make's command line, the id reaches the command as typed, which refuses it.
+    done = _make_teach(env, f"PARTICIPANT=$(shell touch {ran})")
+    assert done.returncode == 2
+    assert f"got '$(shell touch {ran})'" in done.stderr
+    assert not ran.exists()
 
 
 def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(capsys):

@@ -130,7 +130,7 @@ class PreferencePosterior:
         with np.errstate(divide="ignore"):
             log_p = np.log(self._probabilities(values, column))
         total = self.log_likelihood + log_p
-        if not np.isfinite(total).any():
+        if not np.isfinite(total.max()):
             raise ValueError(
                 f"the answer {column} to {tuple(values)} is impossible under every answer model given the "
                 "answers before it (a teacher model that never errs, contradicted)"

@@ -51,9 +51,9 @@ class CandidateSet:
 
     @property
     def values(self) -> np.ndarray:
-        """The candidates in increasing order (linspace, so both ends are exact); read-only, computed once
-        per set."""
-        return _values(self.low, self.high, self.size)
+        """The candidates in increasing order (linspace, so both ends are exact), computed once per set and
+        copied."""
+        return _values(self.low, self.high, self.size).copy()
 
     def normalise(self, parameter: np.ndarray | float) -> np.ndarray | float:
         """Map parameter units to [0, 1] over the range, so losses weigh height and mass alike."""
@@ -73,7 +73,7 @@ class CandidateSet:
         return index
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=64, typed=True)
 def _values(low: float, high: float, size: int) -> np.ndarray:
     values = np.linspace(low, high, size)
     values.flags.writeable = False
