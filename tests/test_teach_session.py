@@ -788,11 +788,15 @@ def test_make_teach_refuses_a_participant_served_before_with_other_settings(resu
         participant_main(["P9", "--port", port])  # the truth forgotten: 0.8, not 0.6
     assert stopped.value.code == 2
     said = capsys.readouterr().err
-    assert (
-        said.startswith("make teach: participant P9 was served with other settings (")
-        and "true_parameter" in said
+    # One line naming what differs as make teach's settings, then and now, and the file that holds it.
+    assert said == (
+        "make teach: participant P9 was served before with other settings (TRUE_PARAMETER=0.6 then, 0.8 now; "
+        "sessions/practice/participant_P9_practice.jsonl): serve them with those, or give this session "
+        "another id\n"
     )
-    assert said.count("\n") == 1
+    with pytest.raises(SystemExit):
+        participant_main(["P9", "--port", port, "--true-parameter", "17", "--domain", "pushing"])
+    assert "(DOMAIN=wiping then, pushing now, TRUE_PARAMETER=0.6 then, 17.0 now; " in capsys.readouterr().err
 
 
 def test_make_teach_checks_the_very_headers_the_served_notebook_writes(results, monkeypatch, tmp_path):

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import fcntl
+import json
 import os
 import signal
 import socket
@@ -24,7 +25,7 @@ import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from hipref.experiments.domains import domain_spec
 from hipref.learners.queries import QUERY_RULES
@@ -135,10 +136,41 @@ def check_sessions(config: TeachConfig) -> None:
         except OSError as error:  # SessionUnwritable among them
             refuse(f"participant {config.participant}'s session cannot be opened: {error}")
         except ValueError as error:
+            earlier = earlier_settings(path, session_config.header()) or str(error)
             refuse(
-                f"participant {config.participant} was served with other settings ({error}): serve them with "
-                "those, or give this session another id"
+                f"participant {config.participant} was served before with other settings ({earlier}; "
+                f"{path.relative_to(results_dir())}): serve them with those, or give this session another id"
             )
+
+
+MAKE_SETTINGS = {
+    "domain": "DOMAIN",
+    "true_parameter": "TRUE_PARAMETER",
+    "queries": "QUERIES",
+    "catch_every": "CATCH_EVERY",
+    "conditions": "CONDITIONS",
+}
+"""The session header's fields a researcher sets on `make teach`'s command line, by their names there."""
+
+
+def earlier_settings(path: Path, header: dict[str, Any]) -> str:
+    """What the session in `path` was started with where it differs from `header`, as `make teach`'s
+    settings ('DOMAIN=pushing then, wiping now'); empty if its header cannot be read."""
+    try:
+        stored = json.loads(path.read_text(encoding="utf-8").splitlines()[0])
+    except (OSError, ValueError, IndexError):
+        return ""
+    if not isinstance(stored, dict):
+        return ""
+    stored.pop("format", None)
+
+    def shown(value: Any) -> str:
+        return " ".join(map(str, value)) if isinstance(value, list) else str(value)
+
+    differ = sorted(k for k in {*stored, *header} if stored.get(k) != header.get(k))
+    return ", ".join(
+        f"{MAKE_SETTINGS.get(k, k)}={shown(stored.get(k))} then, {shown(header.get(k))} now" for k in differ
+    )
 
 
 @contextlib.contextmanager
