@@ -546,7 +546,7 @@ def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(r
     )
     app = ParticipantApp(config, render=False)
     text = app.widget.children[0].value
-    assert "height of the desk" in text and "4 pairs in 2 part(s)" in text
+    assert "height of the desk" in text and "4 pairs in 2 parts." in text
     app.widget.children[1].click()  # start the practice
     shown = app.practice.teaching.current
     assert shown.catch and shown.query.candidates == (0.8, 0.5)

@@ -47,8 +47,8 @@ Choose the clip where the robot does the task <b>better</b>: <b>◀ left</b>, <b
 <p>{plan} Some pairs are easy on purpose.
 Your answers are saved as you give them; you may close the window and come back.</p>
 """
-FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts} part(s)."
-COMING_BACK = "Welcome back: you go on where you stopped ({queries} pairs in {parts} part(s) in all)."
+FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts}."
+COMING_BACK = "Welcome back: you go on where you stopped ({queries} pairs in {parts} in all)."
 """The plan the instructions give: before the practice pair, or to a participant who answered it."""
 
 TASKS: dict[str, tuple[str, str, str]] = {
@@ -114,7 +114,8 @@ class ParticipantApp:
             back = _practised(practice_path(practice), practice)
         except SessionLocked:  # a window still open holds it: the start button says so
             back = True
-        plan = (COMING_BACK if back else FIRST_VISIT).format(queries=queries, parts=len(self.conditions))
+        parts = "one part" if len(self.conditions) == 1 else f"{len(self.conditions)} parts"
+        plan = (COMING_BACK if back else FIRST_VISIT).format(queries=queries, parts=parts)
         text = INSTRUCTIONS.format(task=task, parameter=parameter, symptom=symptom, plan=plan)
         self._screen(text, "Continue" if back else "Start the practice pair", self._start_practice)
 
