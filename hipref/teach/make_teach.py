@@ -137,9 +137,10 @@ def check_sessions(config: TeachConfig) -> None:
             refuse(f"participant {config.participant}'s session cannot be opened: {error}")
         except ValueError as error:
             earlier = earlier_settings(path, session_config.header()) or str(error)
+            where = path.relative_to(results_dir()) if path.is_relative_to(results_dir()) else path
             refuse(
                 f"participant {config.participant} was served before with other settings ({earlier}; "
-                f"{path.relative_to(results_dir())}): serve them with those, or give this session another id"
+                f"{where}): serve them with those, or give this session another id"
             )
 
 
