@@ -775,6 +775,21 @@ def test_make_teach_refuses_a_machine_that_cannot_render_the_clips(results, monk
     )
 
 
+def test_make_teach_removes_the_view_folders_of_servers_killed_outright(tmp_path):
+    # A server killed with SIGKILL leaves its view folder; the next `make teach` removes it, and only it.
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    stale = tmp_path / f"{make_teach.VIEW_FOLDER}{gone.pid}-abc"
+    live = tmp_path / f"{make_teach.VIEW_FOLDER}{os.getpid()}-def"
+    others = [tmp_path / f"{make_teach.VIEW_FOLDER}x-1", tmp_path / "hipref-other-1-2"]
+    for folder in (stale, live, *others):
+        folder.mkdir()
+        (folder / "teach.ipynb").write_text("{}")
+    make_teach.remove_stale_views(tmp_path)
+    assert not stale.exists()
+    assert live.exists() and all(folder.exists() for folder in others)
+
+
 def test_make_teach_refuses_a_participant_served_before_with_other_settings(results, monkeypatch, capsys):
     monkeypatch.setattr(make_teach, "why_no_gl", lambda: None)
     monkeypatch.setattr(make_teach.signal, "signal", lambda *_: None)

@@ -19,6 +19,7 @@ import contextlib
 import fcntl
 import json
 import os
+import shutil
 import signal
 import socket
 import sys
@@ -102,11 +103,12 @@ def main(argv: list[str] | None = None) -> None:
     # there, and its answers deleted with it.
     os.environ["HIPREF_RESULTS_DIR"] = str(results_dir().resolve())
     root = repo_root() or Path.cwd()
+    remove_stale_views(Path(tempfile.gettempdir()))
     # A kill (SIGTERM) ends the server as Ctrl-C does: Voila stopped, the temporary folder removed.
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     with (
         served_once(args.participant, args.port),
-        tempfile.TemporaryDirectory(prefix="hipref-participant-") as folder,
+        tempfile.TemporaryDirectory(prefix=f"{VIEW_FOLDER}{os.getpid()}-") as folder,
     ):
         check_sessions(config)
         view = participant_view(
@@ -118,6 +120,31 @@ def main(argv: list[str] | None = None) -> None:
             args.port,
             f"participant {args.participant}: http://127.0.0.1:{args.port}/",
         )
+
+
+VIEW_FOLDER = "hipref-participant-"
+"""The served view's temporary folder: VIEW_FOLDER, the serving process's pid, '-' and a random part."""
+
+
+def remove_stale_views(folder: Path) -> None:
+    """Remove the view folders in `folder` whose serving process is gone: one killed outright (SIGKILL) could
+    not remove its own. A folder whose pid is alive, or not this user's to remove, is left."""
+    for view in folder.glob(f"{VIEW_FOLDER}*-*"):
+        pid = view.name[len(VIEW_FOLDER) :].split("-", 1)[0]
+        if not pid.isdigit() or pid_alive(int(pid)):
+            continue
+        shutil.rmtree(view, ignore_errors=True)
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether a process `pid` exists (one of another user's counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def check_sessions(config: TeachConfig) -> None:
