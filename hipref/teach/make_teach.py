@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import fcntl
-import json
 import os
 import shutil
 import signal
@@ -41,7 +40,7 @@ from hipref.teach.participant import (
     practice_path,
 )
 from hipref.teach.server import port_in_use, serve, voila_command
-from hipref.teach.session import SessionFile, SessionLocked
+from hipref.teach.session import OtherSession, SessionFile, SessionLocked
 
 TRUTH_SHARE = 0.75
 """Where a participant's world lies in the domain's range unless told (0.8 m, 17 kg): away from the middle,
@@ -137,13 +136,13 @@ def remove_stale_views(folder: Path) -> None:
 
 
 def pid_alive(pid: int) -> bool:
-    """Whether a process `pid` exists (one of another user's counts)."""
+    """Whether a process `pid` exists (one of another user's counts: signalling it is refused)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True
+        pass
     return True
 
 
@@ -162,8 +161,8 @@ def check_sessions(config: TeachConfig) -> None:
             refuse(f"participant {config.participant}'s session is open elsewhere: {error}")
         except OSError as error:  # SessionUnwritable among them
             refuse(f"participant {config.participant}'s session cannot be opened: {error}")
-        except ValueError as error:
-            earlier = earlier_settings(path, session_config.header()) or str(error)
+        except ValueError as error:  # OtherSession among them
+            earlier = earlier_settings(error, session_config.header()) or str(error)
             where = path.relative_to(results_dir()) if path.is_relative_to(results_dir()) else path
             refuse(
                 f"participant {config.participant} was served before with other settings ({earlier}; "
@@ -181,23 +180,20 @@ MAKE_SETTINGS = {
 """The session header's fields a researcher sets on `make teach`'s command line, by their names there."""
 
 
-def earlier_settings(path: Path, header: dict[str, Any]) -> str:
-    """What the session in `path` was started with where it differs from `header`, as `make teach`'s
-    settings ('DOMAIN=pushing then, wiping now'); empty if its header cannot be read."""
-    try:
-        stored = json.loads(path.read_text(encoding="utf-8").splitlines()[0])
-    except (OSError, ValueError, IndexError):
+def earlier_settings(error: ValueError, header: dict[str, Any]) -> str:
+    """What a session file refused as `OtherSession` was started with where it differs from `header`, as
+    `make teach`'s settings ('DOMAIN=pushing then, wiping now'); empty for another refusal, or when only the
+    file's format differs."""
+    if not isinstance(error, OtherSession):
         return ""
-    if not isinstance(stored, dict):
-        return ""
-    stored.pop("format", None)
 
     def shown(value: Any) -> str:
         return " ".join(map(str, value)) if isinstance(value, list) else str(value)
 
-    differ = sorted(k for k in {*stored, *header} if stored.get(k) != header.get(k))
     return ", ".join(
-        f"{MAKE_SETTINGS.get(k, k)}={shown(stored.get(k))} then, {shown(header.get(k))} now" for k in differ
+        f"{MAKE_SETTINGS.get(k, k)}={shown(error.stored.get(k))} then, {shown(header.get(k))} now"
+        for k in error.differ
+        if k != "format"
     )
 
 

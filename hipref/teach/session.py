@@ -43,6 +43,16 @@ class AnswerRefused(ValueError):
     """An answer the file cannot take: its query was already answered, or one before it was not."""
 
 
+class OtherSession(ValueError):
+    """The file holds a session started with another header: `stored` is its header, `differ` the fields
+    that differ from this one's."""
+
+    def __init__(self, message: str, stored: dict[str, Any], differ: list[str]) -> None:
+        super().__init__(message)
+        self.stored = stored
+        self.differ = differ
+
+
 class SessionLocked(RuntimeError):
     """The session file is being written by another live session."""
 
@@ -95,9 +105,11 @@ class SessionFile:
             differ = sorted(
                 k for k in {*self.header, *(stored or {})} if (stored or {}).get(k) != self.header.get(k)
             )
-            raise ValueError(
+            raise OtherSession(
                 f"{self.path} holds another session (fields {', '.join(differ)} differ from this one's): "
-                "choose another session file, or start this one afresh"
+                "choose another session file, or start this one afresh",
+                stored if isinstance(stored, dict) else {},
+                differ,
             )
         for number, record in enumerate(lines[1:], start=2):
             try:
