@@ -1,6 +1,7 @@
 """Notebook 09 in JupyterLab in a real headless browser: a person's clicks and keys reach the session file; a
 killed kernel resumes where the person stopped; a read-only session file and a second kernel on the same file
-are refused with a message before any clip plays; a finished session reopens on its summary.
+are refused with a message before any clip plays; a finished session reopens on its summary. In Voila, a
+participant answers without seeing code, and the page says when its kernel dies or the server stops.
 
 Needs Debian's `chromium` (`.ci/run` installs it) and Playwright's Python client (environment.txt); where
 either is missing the test is skipped with the reason, never passed. The screenshot of the notebook it takes
@@ -78,8 +79,8 @@ def person_notebook(directory: Path) -> Path:
 
 
 @contextlib.contextmanager
-def serving(command: list[str], port: int, env: dict[str, str]) -> Iterator[None]:
-    """A server started by `command`, once it listens on `port`; stopped afterwards."""
+def serving(command: list[str], port: int, env: dict[str, str]) -> Iterator[subprocess.Popen[bytes]]:
+    """A server started by `command`, once it listens on `port`; stopped afterwards (if not already)."""
     server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 120
@@ -90,7 +91,7 @@ def serving(command: list[str], port: int, env: dict[str, str]) -> Iterator[None
             time.sleep(0.3)
         else:
             pytest.fail(f"{command[2]} did not start within 120 s")
-        yield
+        yield server
     finally:
         server.terminate()
         try:
@@ -355,6 +356,7 @@ PARTICIPANT = {
 @pytest.mark.slow
 def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
     browser_available()
+    from hipref.teach.notice import KERNEL_GONE, NOTICE_CLASS, SERVER_STOPPED
     from hipref.teach.participant import participant_view
     from hipref.teach.server import voila_command
 
@@ -362,7 +364,7 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
     port, results = free_port(), tmp_path / "results"
     env = {**os.environ, "HIPREF_RESULTS_DIR": str(results), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
     flags = ["--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
-    with serving(voila_command(view, port), port, env), sync_playwright() as playwright:
+    with serving(voila_command(view, port), port, env) as server, sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=CHROMIUM, args=flags)
         page = browser.new_page(viewport={"width": 1100, "height": 1200})
         page.goto(f"http://127.0.0.1:{port}/", timeout=240_000)  # Voila runs the cells before serving
@@ -382,6 +384,23 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
             page.locator(".jp-InputArea, .jp-Editor, .cm-editor, .CodeMirror, .jp-InputPrompt").count() == 0
         )
         assert "participant_screen" not in page.content()
+        notice = page.locator(f".{NOTICE_CLASS}")
+        assert notice.is_hidden()
+        # The page's kernel dies: the page says so, rather than keep buttons that reach nothing.
+        config = page.evaluate("document.getElementById('jupyter-config-data').textContent")
+        kernel_id = json.loads(config)["kernelId"]
+        for pid in kernel_processes(kernel_id):
+            os.kill(pid, signal.SIGKILL)
+        notice.get_by_text(KERNEL_GONE).wait_for(timeout=30_000)
+        # Reloaded, it goes on where it stopped (every part answered: the closing screen); then the server
+        # stops, and the page says that.
+        page.reload(timeout=240_000)
+        screen.get_by_text("Welcome back").wait_for(timeout=240_000)
+        screen.get_by_role("button", name="Continue").click()
+        screen.get_by_text("Thank you").wait_for(timeout=120_000)
+        assert notice.is_hidden()
+        server.terminate()
+        notice.get_by_text(SERVER_STOPPED).wait_for(timeout=30_000)
         browser.close()
     sessions = results / "sessions"
     header, *stored = [

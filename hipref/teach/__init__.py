@@ -4,6 +4,7 @@
 - `session`: the answers file, each answer written before the learner is told.
 - `preferences`, `feedback`: the learners with a person as teacher, resumable from the file.
 - `clips`: two clips side by side as a looping GIF.
+- `notice`: what a participant's page says when its server stops or its kernel dies.
 - `app`: the widgets, and the scripted stand-in that presses them.
 - `recorded`: a stored session as a teacher, replayed into PESI, CO-PESI, the Bayesian learner and the noise
   estimators.

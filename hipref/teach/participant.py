@@ -270,11 +270,22 @@ def researcher_sections(config: TeachConfig) -> None:
         raise ParticipantMode(config.participant)
 
 
+WATCH_CELL: dict[str, Any] = {
+    "cell_type": "code",
+    "id": "connection-watch",
+    "metadata": {},
+    "source": "from hipref.teach.notice import connection_watch\n\nconnection_watch()",
+    "outputs": [],
+    "execution_count": None,
+}
+"""The view's first cell: the notice a page shows when it loses its learner (`hipref.teach.notice`)."""
+
+
 def participant_view(notebook: Path, parameters: dict[str, Any], out: Path) -> Path:
-    """Notebook `notebook` as a participant's view: its parameters cell with `parameters` set, and only its
-    cells tagged `TAG`, without outputs; written to `out`."""
+    """Notebook `notebook` as a participant's view: `WATCH_CELL`, then its parameters cell with `parameters`
+    set and only its cells tagged `TAG`, without outputs; written to `out`."""
     content = json.loads(notebook.read_text())
-    cells = []
+    cells = [WATCH_CELL]
     for cell in content["cells"]:
         tags = cell.get("metadata", {}).get("tags", [])
         if "parameters" in tags:

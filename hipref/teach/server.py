@@ -20,12 +20,14 @@ the server. Voila leaves a closed page's kernel running otherwise."""
 
 def voila_command(view: Path, port: int) -> list[str]:
     """Voila serving the participant's `view` on loopback at `port` (and no other port), its code cells
-    hidden, the kernels of closed pages shut down (CULL_SECONDS)."""
+    hidden, the kernels of closed pages shut down (CULL_SECONDS), and a kernel that dies removed rather than
+    restarted: a restarted kernel has none of the page's widgets, so its page could only pretend to work;
+    removed, the page says so (`hipref.teach.notice`)."""
     return [
         sys.executable, "-m", "voila", str(view), "--no-browser", f"--port={port}", "--Voila.ip=127.0.0.1",
         "--Voila.port_retries=0", "--strip_sources=True", "--show_tracebacks=True",
         f"--MappingKernelManager.cull_idle_timeout={CULL_SECONDS}",
-        f"--MappingKernelManager.cull_interval={CULL_EVERY}",
+        f"--MappingKernelManager.cull_interval={CULL_EVERY}", "--KernelRestarter.restart_limit=0",
     ]  # fmt: skip
 
 
