@@ -22,8 +22,9 @@ varies inside the interval, and spreading the weight evenly approximates it). Re
 the estimate sit one step from the posterior's bulk, gathering a tail on its other side, and miss a truth in
 the bulk's far half: in notebook 12 (full profile) the learner told the stochastic teacher's model needed 130
 answers to be within one step in 90 % of the wiping environments read so, and 55 read by stretches. On the two
-grids above the learner told nothing is over 1.25 times the answers of the learner told the model under 6 of
-24 settings read by stretches.
+grids above, with the pairs within the belief's central 99.8 %, the learner told nothing is over 1.25 times
+the answers of the learner told the model under 6 of 24 settings read by stretches (4 of 24 with the pairs
+within its central half, `hipref.learners.queries`).
 """
 
 from __future__ import annotations

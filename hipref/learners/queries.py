@@ -14,25 +14,25 @@ models (`hipref.learners.answer_models`) and picks two candidates of Phi:
 - 'volume_removal': APReL's expected volume removed, 1 - sum_y P(y)^2 (Sadigh et al. 2017), which ignores
   how noisy each answer is.
 
-The chosen rules score only the pairs whose midpoint lies within the belief's central half, widened by half a
-step of Phi (`CENTRAL`, `worth_asking`). Under the flip model bisection asks at the median anyway, and the
-learner told the teacher's model needs as many answers to one step as without the restriction on notebook 12's
-truths with ten blocks of seeds (below) but under the skip teacher in pushing, 3 against 4 (its pairs change
-under the equal, skip and myopic teachers, and once its belief lies within a step). Under a belief over many
-answer models the answers hardly tell the models apart (under bisection every model predicts each answer at
-about 1/2): a teacher flipping 20 % leaves weight on flip rates up to 0.45 and on the myopic teacher's models,
-whose wide posteriors draw the best-scoring pair into their tails (weighing the flip and myopic models alone,
-(10.0, 12.0) kg asked of a truth at 18 kg in pushing). Measured as the settings where the learner told nothing
-needs over 1.25 times the answers of the learner told the model (`python -m hipref.bench.model_choice`, 12
-teacher settings, 200 answers), against scoring the pairs within the central 99.8 %: on notebook 12's truths
-with ten blocks of seeds (`--grid study --blocks 10`, 100 environments per domain at once) 4 of 12 against 6,
-only the skip and equal teachers left (5 and 4 answers against 3); on the two wide grids (`--grid wide`,
-`--grid wide2`, 40 environments per domain) 2 and 2 against 2 and 4. Under the myopic teacher, which neither
-learner brings within one step, told nothing's final error rose in all four wide-grid settings (in wiping on
-the first grid 1.65 times told the model's, against 1.41). Within the central 98 % it was 3 on the first wide
-grid (99.8 %: 2) and 7 on notebook 12's grid (one block), as with 99.8 %; with `CENTRAL` at 0.3 or 0.7, 5 and
-4 of 12 on notebook 12's ten blocks, at both with the paper's teacher at 20 % flips in pushing over (30 and 33
-answers against told the model's 23; the half needs 28).
+Information gain and volume removal score only the pairs whose midpoint lies within the belief's central half,
+widened by half a step of Phi (`CENTRAL`, `worth_asking`). Under the flip model bisection asks at the median
+anyway, and the learner told the teacher's model needs as many answers to one step as without the restriction
+on notebook 12's truths with ten blocks of seeds (below) but under the skip teacher in pushing, 3 against 4
+(its pairs change under the equal, skip and myopic teachers, and once its belief lies within a step). Under a
+belief over many answer models the answers hardly tell the models apart (under bisection every model predicts
+each answer at about 1/2): a teacher flipping 20 % leaves weight on flip rates up to 0.45 and on the myopic
+teacher's models, whose wide posteriors draw the best-scoring pair into their tails (weighing the flip and
+myopic models alone, (10.0, 12.0) kg asked of a truth at 18 kg in pushing). Measured as the settings where the
+learner told nothing needs over 1.25 times the answers of the learner told the model (`python -m
+hipref.bench.model_choice`, 12 teacher settings, 200 answers), against scoring the pairs within the central
+99.8 %: on notebook 12's truths with ten blocks of seeds (`--grid study --blocks 10`, 100 environments per
+domain at once) 4 of 12 against 6, only the skip and equal teachers left (5 and 4 answers against 3); on the
+two wide grids (`--grid wide`, `--grid wide2`, 40 environments per domain) 2 and 2 against 2 and 4. Under the
+myopic teacher, which neither learner brings within one step, told nothing's final error rose in all four
+wide-grid settings (in wiping on the first grid 1.65 times told the model's, against 1.41). Within the central
+98 % it was 3 on the first wide grid (99.8 %: 2) and 7 on notebook 12's grid (one block), as with 99.8 %; with
+`CENTRAL` at 0.3 or 0.7, 5 and 4 of 12 on notebook 12's ten blocks, at both with the paper's teacher at 20 %
+flips in pushing over (30 and 33 answers against told the model's 23; the half needs 28).
 
 Measured before that restriction (pairs within the central 99.8 %), information gain against other ways to
 choose under a learner told nothing of the teacher, as the same count (`--grid wide --episodes 200`), all with
@@ -62,16 +62,16 @@ teacher left out). Measured the same way:
   19). On notebook 12's truths with ten blocks of seeds (`--blocks 10`, 100 environments per domain at once)
   it is over 1.25 in 4 of 12 where this rule is in 6: the stochastic teacher comes within (80 answers against
   65 in wiping, 100 against 85 in pushing), the equal teacher in pushing goes further (5 against 3), and the
-  benchmark ran twice as long. Notebook 12's 180 runs told nothing at the full profile take 206 s of work
-  under it against 122 s under this rule (timed as `python -m hipref.bench.answers_time` times them): about
-  40 s more of the notebook's 162 s on two workers, over its 3 minutes. Kept to the heaviest models spanning
-  at most six rules (tables; the flip rates of one rule share theirs, `_mixed`), which costs what this rule
-  does, it is over 1.25 in 5 of 12 on the same environments (200 answers each): the skip and equal teachers in
-  wiping (5 and 4 answers against 3), and in pushing the paper's teacher at 20 % flips (33 against 23), the
-  stochastic teacher (110 against 85) and the equal teacher (4 against 3). Each kind's most probable model
-  alone, weighed by the whole kind's probability (every kind scored, none of its noisier parameters): 5 of 12
-  there too (wiping: the stochastic teacher 90 against 65, the skip and equal teachers 4 against 3; pushing:
-  20 % flips 33 against 23, the equal teacher 4 against 3);
+  benchmark ran twice as long. Notebook 12's runs told nothing at the full profile took 1.7 times the work
+  under it (206 s against 122 s, timed as `python -m hipref.bench.answers_time` times them, with the pairs
+  within the central 99.8 %), enough to put the notebook over its 3 minutes on a slow day. Kept to the
+  heaviest models spanning at most six rules (tables; the flip rates of one rule share theirs, `_mixed`),
+  which costs what this rule does, it is over 1.25 in 5 of 12 on the same environments (200 answers each): the
+  skip and equal teachers in wiping (5 and 4 answers against 3), and in pushing the paper's teacher at 20 %
+  flips (33 against 23), the stochastic teacher (110 against 85) and the equal teacher (4 against 3). Each
+  kind's most probable model alone, weighed by the whole kind's probability (every kind scored, none of its
+  noisier parameters): 5 of 12 there too (wiping: the stochastic teacher 90 against 65, the skip and equal
+  teachers 4 against 3; pushing: 20 % flips 33 against 23, the equal teacher 4 against 3);
 - each model's information about phi given that model, weighed by the model's posterior, over all 30: 2 on
   the wide grid (the skip teacher, 8 answers in each domain against told the model's 4 in wiping and 5 in
   pushing);
