@@ -12,7 +12,13 @@ import pandas as pd
 
 from hipref import verdicts
 from hipref.experiments.answers_tables import CONSISTENT, answers_to_step, told_against_chosen
-from hipref.experiments.answers_to_success import MODEL_CHOICE_BOUND, STEP_BOUNDS, SUCCESS_SHORTFALL
+from hipref.experiments.answers_to_success import (
+    MODEL_CHOICE_BOUND,
+    STEP_BOUNDS,
+    SUCCESS_AFTER,
+    SUCCESS_BARS,
+    SUCCESS_SHORTFALL,
+)
 from hipref.experiments.domains import DOMAINS
 from hipref.readme_format import UNITS, WORDS, in_domains, interval, percent, ran_with
 
@@ -27,12 +33,6 @@ def _claims_verdicts(results: Path, section: str) -> list[str]:
 
 FLIPS = 0.2
 """The flip rate of the paper's teacher at which notebook 12 sets its bars beside perfect answers."""
-
-SUCCESS_BARS = {"wiping": 0.9, "pushing": 0.8}
-"""Notebook 12's bars: the task's success after `SUCCESS_AFTER` chosen answers."""
-
-SUCCESS_AFTER = 20
-"""Notebook 12's checkpoint of the success bars."""
 
 GAP_FACTOR = 4
 """Notebook 12's bar: the Bayesian learner's error at least this many times below PESI's."""
@@ -98,27 +98,9 @@ def values(results: Path) -> dict[str, str]:
             f"{share.loc[share['answers'] == checkpoint, 'bayes_answers'].iloc[0]:g}"
         )
         chosen = task[(task["domain"] == domain) & (task["query_rule"] == "information_gain")]
-        exact = task[(task["domain"] == domain) & (task["method"] == "true_parameter")]
-        truth = exact[(exact["metric"] == "success_rate") & (exact["episode"] == SUCCESS_AFTER)]
-        truth_success[domain] = f"{truth['value'].mean():.2f}"
+        truth_success[domain] = _truth_success(task, domain)
         for noise, key in ((0.0, "0"), (FLIPS, "20")):
-            at = chosen[(chosen["noise"] == noise) & (chosen["episode"] == SUCCESS_AFTER)]
-            rate = at[(at["method"] == "bayes") & (at["metric"] == "success_rate")]["value"].to_numpy()
-            margin = verdicts.bootstrap_mean(rate - SUCCESS_BARS[domain])
-            bar = SUCCESS_BARS[domain]
-            success[(domain, key)] = (
-                f"{rate.mean():.2f} (CI {margin.low + bar:.2f}-{margin.high + bar:.2f}: "
-                f"{verdicts.better(margin, lower_is_better=False)} against the {bar:g} bar)"
-            )
-            gap = verdicts.paired_difference(
-                pd.concat([at, exact]),
-                metric="success_rate",
-                method="bayes",
-                baseline="true_parameter",
-                episode=SUCCESS_AFTER,
-            )
-            matched = verdicts.within(gap, -SUCCESS_SHORTFALL, np.inf)
-            truth_gap[(domain, key)] = f"{interval(gap, '', 2)}: {matched}"
+            success[(domain, key)], truth_gap[(domain, key)] = _success(task, domain, noise)
             if noise == 0.0:
                 # PESI asks Algorithm 2's uniform pairs only.
                 pesi = uniform[(uniform["method"] == "pesi") & (uniform["metric"] == "success_rate")]
@@ -139,8 +121,45 @@ def values(results: Path) -> dict[str, str]:
     out["nb12_pesi_success"] = in_domains(pesi_success)
     out["nb12_prior"] = in_domains(prior)
     out.update(_model_choice(steps, rows))
-    out.update(_held_out_answers(held_out))
+    out.update(_held_out_answers(held_out[held_out["part"] == "answers"]))
+    held_task = held_out[(held_out["part"] == "task") & (held_out["metric"] == "success_rate")]
+    out["nb12_held_truth_success"] = in_domains({d: _truth_success(held_task, d) for d in DOMAINS})
+    for noise, key in ((0.0, "0"), (FLIPS, "20")):
+        read = {d: _success(held_task, d, noise) for d in DOMAINS}
+        out[f"nb12_held_success{key}"] = in_domains({d: rate for d, (rate, _) in read.items()})
+        out[f"nb12_held_truth_gap{key}"] = in_domains({d: gap for d, (_, gap) in read.items()})
     return out
+
+
+def _truth_success(task: pd.DataFrame, domain: str) -> str:
+    """The task's success rate with the true parameter on the episodes of the success bars' checkpoint."""
+    exact = task[(task["domain"] == domain) & (task["method"] == "true_parameter")]
+    truth = exact[(exact["metric"] == "success_rate") & (exact["episode"] == SUCCESS_AFTER)]
+    return f"{truth['value'].mean():.2f}"
+
+
+def _success(task: pd.DataFrame, domain: str, noise: float) -> tuple[str, str]:
+    """The task part's success bars at one flip rate: the success rate with the Bayesian learner's estimate
+    after SUCCESS_AFTER chosen answers against the domain's bar, and minus the true parameter's success on
+    the same episodes, each with its interval and verdict."""
+    chosen = task[(task["domain"] == domain) & (task["query_rule"] == "information_gain")]
+    exact = task[(task["domain"] == domain) & (task["method"] == "true_parameter")]
+    at = chosen[(chosen["noise"] == noise) & (chosen["episode"] == SUCCESS_AFTER)]
+    rate = at[(at["method"] == "bayes") & (at["metric"] == "success_rate")]["value"].to_numpy()
+    bar = SUCCESS_BARS[domain]
+    margin = verdicts.bootstrap_mean(rate - bar)
+    success = (
+        f"{rate.mean():.2f} (CI {margin.low + bar:.2f}-{margin.high + bar:.2f}: "
+        f"{verdicts.better(margin, lower_is_better=False)} against the {bar:g} bar)"
+    )
+    gap = verdicts.paired_difference(
+        pd.concat([at, exact]),
+        metric="success_rate",
+        method="bayes",
+        baseline="true_parameter",
+        episode=SUCCESS_AFTER,
+    )
+    return success, f"{interval(gap, '', 2)}: {verdicts.within(gap, -SUCCESS_SHORTFALL, np.inf)}"
 
 
 def _held_out_answers(held_out: pd.DataFrame) -> dict[str, str]:

@@ -22,8 +22,10 @@ from hipref.experiments.answers_tables import (
     told_against_chosen,
 )
 from hipref.experiments.answers_to_success import (
+    SUCCESS_AFTER,
     AnswersCell,
     AnswersConfig,
+    AtTruth,
     answer_counts,
     run_answers,
 )
@@ -415,6 +417,31 @@ def test_chosen_queries_and_blind_learners_run_only_where_the_config_says() -> N
     assert {(c.run.evaluated_at, c.run.eval_episodes) for c in truths} == {
         (c.evaluated_at, c.eval_episodes) for c in task
     }
+
+
+def test_the_held_out_success_runs_the_blind_learner_and_the_truth_on_held_out_environments_only() -> None:
+    config = AnswersConfig(
+        seeds=2,
+        task_noise_levels=(0.0, 0.2),
+        held_out_heights=(0.57, 0.83),
+        held_out_masses=(9.5,),
+        held_out_seeds=(7,),
+    )
+    cells = config.held_out_task_cells()
+    runs = [c for c in cells if isinstance(c, SIRun)]
+    truths = [c.run for c in cells if isinstance(c, AtTruth)]
+    held = {("wiping", 0.57, 7), ("wiping", 0.83, 7), ("pushing", 9.5, 7)}
+    assert {(c.domain, c.ground_truth, c.seed) for c in runs} == held
+    assert sorted((c.domain, c.ground_truth, c.seed) for c in truths) == sorted(held)
+    assert {(c.method, c.told, c.fine_tuning.pesi.candidate_sampling) for c in runs} == {
+        ("bayes", "nothing", "information_gain")
+    }
+    assert sorted(c.noise for c in runs) == sorted([0.0, 0.2] * 3)
+    # Read after SUCCESS_AFTER answers, on the evaluation episodes the true parameter meets too.
+    assert {(c.episodes, c.evaluated_at, c.eval_episodes) for c in runs} == {
+        (c.episodes, c.evaluated_at, c.eval_episodes) for c in truths
+    }
+    assert {c.episodes for c in runs} == {SUCCESS_AFTER}
 
 
 def test_the_held_out_replication_runs_the_claims_settings_on_its_own_environments_only() -> None:

@@ -1,12 +1,12 @@
 """Where notebook 12's time goes: the seconds of each kind of run of its sweep.
 
 `python -m hipref.bench.answers_time` reads notebook 12's parameters of a profile (`--profile full`, the
-default, or `quick`), runs every cell of its sweep in this process, one after another, and prints, per kind
-of run, how many there are and the seconds they take together: the task part's runs (MuJoCo, the real
+default, or `quick`), runs every cell of its sweep in this process, one after another, and prints, per kind of
+run, how many there are and the seconds they take together: the task part's runs (MuJoCo, the real
 controllers) per learner, flip rate and query rule, beside the true parameter's, and the answers part's (no
-physics) per query rule and what the Bayesian learner is told of the teacher, the held-out replication's
-apart. `--part answers` times the answers part alone. The notebook runs the same cells on two worker
-processes; their sum here is the work it shares between them.
+physics) per query rule and what the Bayesian learner is told of the teacher, the held-out replication's (its
+answers and its task runs) apart. `--part answers` times the answers part alone. The notebook runs the same
+cells on two worker processes; their sum here is the work it shares between them.
 
 The task part reads the study's cached artefacts (the pretrained SI networks, the learning clips and the
 evaluation episodes that notebooks 02-04 execute) and builds what is missing, as the notebook does; no cell's
@@ -51,18 +51,20 @@ def kind_of_run(
     if isinstance(cell, AnswersCell):
         part = "held_out" if cell.seed in held_out_seeds else "answers"
         return part, f"bayes, told {cell.told}", cell.query_rule, f"{cell.episodes} answers"
+    run = cell.run if isinstance(cell, AtTruth) else cell
+    part = "held_out task" if run.seed in held_out_seeds else "task"
     if isinstance(cell, AtTruth):
-        return "task", "true_parameter", "", "no teacher"
-    return "task", cell.method, cell.fine_tuning.pesi.candidate_sampling, f"{cell.noise:.0%} flips"
+        return part, "true_parameter", "", "no teacher"
+    return part, cell.method, cell.fine_tuning.pesi.candidate_sampling, f"{cell.noise:.0%} flips"
 
 
 def time_parts(config: AnswersConfig, parts: tuple[str, ...]) -> pd.DataFrame:
-    """Per kind of run (`kind_of_run`) of `parts` ('task', 'answers'; the held-out replication comes with
-    the answers), the number of runs and their seconds, run one after another."""
+    """Per kind of run (`kind_of_run`) of `parts` ('task', 'answers'; the held-out replication's runs come
+    with their part), the number of runs and their seconds, run one after another."""
     cells: list[SIRun | AnswersCell | AtTruth] = []
     if "task" in parts:
         config.pretrain(config.domains)
-        cells += [*config.task_cells(), *config.truth_cells()]
+        cells += [*config.task_cells(), *config.truth_cells(), *config.held_out_task_cells()]
     if "answers" in parts:
         cells += [*config.answers_cells(), *config.held_out_cells()]
     rows = []

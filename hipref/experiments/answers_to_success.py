@@ -58,6 +58,12 @@ learner told its kind, not its flip rate)."""
 MODEL_CHOICE_BOUND = 1.25
 """The claims' most answers (or final error) of the learner told nothing against the one told the model."""
 
+SUCCESS_AFTER = 20
+"""The answers after which the claims read the task's success with the Bayesian learner's estimate."""
+
+SUCCESS_BARS: dict[str, float] = {"wiping": 0.9, "pushing": 0.8}
+"""The claims' least success rate of the task after SUCCESS_AFTER chosen answers, per domain."""
+
 SUCCESS_SHORTFALL = 0.10
 """The claims' most the task's success with the Bayesian learner's estimate may fall below its success with
 the true parameter on the same episodes (notebook 10's margin for a learned low level against its expert)."""
@@ -309,6 +315,43 @@ class AnswersConfig(SIStudy):
             for truth, seed in self.task_environments(domain)
         ]
 
+    def held_out_task_cells(self) -> list[SIRun | AtTruth]:
+        """The success claims replicated on the held-out truths x seeds: the Bayesian learner told nothing
+        of the teacher, asking by information gain at each of `task_noise_levels`, evaluated before any
+        answer and after SUCCESS_AFTER, and the true parameter on the same evaluation episodes."""
+        runs = [
+            replace(
+                self.run_cell(
+                    domain,
+                    "bayes",
+                    truth,
+                    seed,
+                    fine_tuning=FineTuning(
+                        PESIConfig(learning_rate=self.learning_rate, candidate_sampling="information_gain")
+                    ),
+                    noise=noise,
+                    checkpoints=(0, SUCCESS_AFTER),
+                ),
+                episodes=SUCCESS_AFTER,
+            )
+            for domain in self.domains
+            for noise in self.task_noise_levels
+            for truth in self.held_out_grids()[domain]
+            for seed in self.held_out_seeds
+        ]
+        at_truth = [
+            AtTruth(
+                replace(
+                    self.run_cell(domain, "osi", truth, seed, checkpoints=(0, SUCCESS_AFTER)),
+                    episodes=SUCCESS_AFTER,
+                )
+            )
+            for domain in self.domains
+            for truth in self.held_out_grids()[domain]
+            for seed in self.held_out_seeds
+        ]
+        return [*runs, *at_truth]
+
     def truth_cells(self) -> list[AtTruth]:
         """The task part's reference: each environment's evaluation episodes with the true parameter."""
         return [
@@ -345,7 +388,7 @@ def run(config: AnswersConfig, **sweep: Any) -> pd.DataFrame:
     the task part's runs first: they take the longest."""
     config.pretrain(config.domains, **sweep)
     task, answers, held_out = config.task_cells(), config.answers_cells(), config.held_out_cells()
-    cells = [*task, *config.truth_cells(), *answers, *held_out]
+    cells = [*task, *config.truth_cells(), *config.held_out_task_cells(), *answers, *held_out]
     rows = run_sweep(run_cell, cells, desc="answers to success", **sweep)
     held_out_seeds = set(config.held_out_seeds)
     rows["grid"] = np.where(rows["seed"].isin(held_out_seeds), "held_out", "study")
