@@ -119,7 +119,8 @@ lab: install
 # queries, in DOMAIN's world with TRUE_PARAMETER (empty: three quarters up the range, 0.8 m or 17 kg).
 # Each is set on make's command line; the shell's own variables of these names (PORT and DOMAIN are common)
 # are not read. The values reach the command through the environment as given ($(value)), so an id is never
-# read as make's or the shell's code.
+# read as make's or the shell's code. The command replaces the recipe's shell (exec) and ends with make, so a
+# kill of make stops the server too.
 SHELL_PARTICIPANT := $(if $(filter environment,$(origin PARTICIPANT)),$(value PARTICIPANT))
 PARTICIPANT =
 CONDITIONS = uniform information_gain
@@ -140,7 +141,7 @@ teach: install
 	@test -n "$$PARTICIPANT" || { test -z "$$SHELL_PARTICIPANT" || \
 		printf 'make teach: PARTICIPANT=%s is set in the shell, which make teach does not read\n' "$$SHELL_PARTICIPANT" >&2; \
 		echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }
-	$(PY) -m hipref.teach.make_teach "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
+	exec $(PY) -m hipref.teach.make_teach "$$PARTICIPANT" --conditions $$CONDITIONS --catch-every "$$CATCH_EVERY" \
 		--domain "$$DOMAIN" --queries "$$QUERIES" $${TRUE_PARAMETER:+--true-parameter "$$TRUE_PARAMETER"} --port "$$PORT"
 
 bench: install

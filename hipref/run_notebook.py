@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import argparse
+import ast
 import contextlib
 import os
 import re
@@ -129,8 +130,16 @@ def relative_outputs(notebook: nbformat.NotebookNode, replacements: Mapping[str,
 
 
 def as_committed(notebook: nbformat.NotebookNode) -> None:
-    """Remove papermill's injected-parameters cell and number the executed cells from 1, in place."""
+    """Remove papermill's injected-parameters cell, number the executed cells from 1 and record the
+    parameters it ran with, its parameters cell's defaults, in place (papermill keeps those of the notebook
+    it read, which may be of an earlier run)."""
     notebook.cells = [c for c in notebook.cells if INJECTED not in c.get("metadata", {}).get("tags", [])]
+    (cell,) = (c for c in notebook.cells if "parameters" in c.get("metadata", {}).get("tags", []))
+    notebook.metadata.papermill["parameters"] = {
+        node.target.id: ast.literal_eval(node.value)
+        for node in ast.parse(cell.source).body
+        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.value is not None
+    }
     count = 0
     for cell in notebook.cells:
         if cell.cell_type != "code" or cell.get("execution_count") is None:

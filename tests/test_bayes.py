@@ -3,11 +3,20 @@ algebra is wrong."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 
-from hipref.learners.answer_models import ANSWER_KINDS, AnswerModel, model_family, told
+from hipref.learners.answer_models import (
+    ANSWER_KINDS,
+    PERSON_LAPSE,
+    AnswerModel,
+    model_family,
+    person_family,
+    told,
+)
 from hipref.learners.bayes import BayesConfig, BayesLearner, PreferencePosterior, answer_column
 from hipref.learners.estimates import expected_success, most_expected, most_within
 from hipref.learners.pesi import PESIConfig, PESILearner
@@ -28,6 +37,8 @@ def _models() -> list[AnswerModel]:
         AnswerModel("equal", equal_margin=0.1),
         AnswerModel("myopic", spread=0.2),
         AnswerModel("distance", confusion_max=0.4, confusion_width=0.1),
+        AnswerModel("equal", equal_margin=0.05, flip=0.1, lapse=0.05),
+        AnswerModel("stochastic", beta=5.0, lapse=0.2),
     ]
 
 
@@ -142,6 +153,34 @@ def test_an_impossible_answer_under_a_teacher_that_never_errs_is_refused_by_name
     posterior.update((0.5, 0.9), 0)  # truth below 0.7
     with pytest.raises(ValueError, match="impossible under every answer model"):
         posterior.update((0.6, 0.9), 1)  # truth above 0.75
+
+
+def test_a_lapse_gives_every_answer_a_person_can_press_its_share() -> None:
+    lapse = 0.06
+    rule = AnswerModel("equal", equal_margin=0.05, flip=0.1)
+    offsets = np.array([[-0.3, 0.2], [-0.01, 0.01], [0.1, 0.4]])  # outside, inside, outside the window
+    plain, slipping = (
+        rule.probabilities(offsets),
+        AnswerModel("equal", equal_margin=0.05, flip=0.1, lapse=lapse).probabilities(offsets),
+    )
+    # Each of the two candidates and 'equally good' gets lapse / 3 on top of (1 - lapse) times the rule's.
+    np.testing.assert_allclose(slipping[:, [0, 1, -1]], (1 - lapse) * plain[:, [0, 1, -1]] + lapse / 3)
+    np.testing.assert_allclose(slipping[:, -2], 0.0)  # no 'skip' button
+
+
+def test_a_persons_cant_tell_to_pairs_far_apart_is_never_impossible() -> None:
+    # Two "can't tell" answers whose midpoints (0.75, 0.6) no truth lies near at once: every model without a
+    # lapse refuses the second; the person's learner weighs it and goes on.
+    strict = PreferencePosterior(GRID, model_family())
+    strict.update((0.6, 0.9), answer_column(EQUAL, 2))
+    with pytest.raises(ValueError, match="impossible under every answer model"):
+        strict.update((0.5, 0.7), answer_column(EQUAL, 2))
+    person = PreferencePosterior(GRID, person_family())
+    for pair in ((0.6, 0.9), (0.5, 0.7), (0.8, 0.85), (0.52, 0.55)):
+        person.update(pair, answer_column(EQUAL, 2))
+    assert np.all(np.isfinite(person.phi())) and person.phi().sum() == pytest.approx(1.0)
+    assert {m.lapse for m in person_family()} == {PERSON_LAPSE}
+    assert [replace(m, lapse=0.0) for m in person_family()] == list(model_family())
 
 
 def test_uniform_queries_are_pesis_queries_from_the_same_seed() -> None:

@@ -100,7 +100,9 @@ def test_an_execution_runs_on_its_own_sockets_and_names_no_absolute_path(tmp_pat
         "executed.ipynb",
     )
 
+    executed.metadata.papermill.parameters = {"value": 7}  # as an earlier run with other values left it
     as_committed(executed)
+    assert executed.metadata.papermill.parameters == {"value": 1}  # what the committed notebook runs with
     assert not any(INJECTED in c.metadata.get("tags", []) for c in executed.cells)
     assert [c.execution_count for c in executed.cells] == [1, 2, 3, 4]
     assert executed.cells[-1].outputs[0].execution_count == 4

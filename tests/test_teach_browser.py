@@ -372,6 +372,11 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
         screen.get_by_text("Teach a robot").wait_for(timeout=120_000)
         screen.get_by_role("button", name="Start the practice pair").click()
         screen.get_by_text("Query 1 of 1").wait_for(timeout=240_000)
+        # Reloaded before any answer: the closed page's kernel is shut down at once, so the practice file it
+        # held is free, and the participant starts afresh rather than wait for the cull.
+        page.reload(timeout=240_000)
+        screen.get_by_role("button", name="Start the practice pair").click(timeout=120_000)
+        screen.get_by_text("Query 1 of 1").wait_for(timeout=60_000)
         screen.get_by_role("button", name="◀ left").click()
         screen.get_by_text("clip was the better one").wait_for(timeout=60_000)
         screen.get_by_role("button", name="Start", exact=True).click()

@@ -450,6 +450,37 @@ def test_a_failed_write_is_shown_in_the_widget_and_raised_by_the_stand_in(result
     app.teaching.close()
 
 
+@pytest.mark.parametrize("rule", ["uniform", "information_gain"])
+def test_a_person_who_cannot_tell_pair_after_pair_goes_on_to_the_end(results, rule):
+    config = TeachConfig(**{**SMALL, "query_rule": rule})
+    app = PreferenceApp(PreferenceTeaching(config, open_session(config), render=False))
+    app.settle = 0.0
+    for _ in range(config.preference_queries):
+        assert app.wait_ready(timeout=60)
+        app.buttons["cant_tell"].click()
+        assert app.error is None, app.message.value
+    assert [r["answer"] for r in lines(app.teaching.session.path)[1:]] == ["cant_tell"] * 6
+    assert app.teaching.done and np.isfinite(app.teaching.estimate())
+    app.teaching.close()
+
+
+def test_a_learner_that_fails_after_the_answer_is_saved_says_so_rather_than_freeze(results, monkeypatch):
+    def broken(*args, **kwargs):
+        raise ValueError("the learner broke")
+
+    # Told in the background, where the next query is prepared: the failure meets the answer that needs it.
+    monkeypatch.setattr("hipref.teach.preferences.told", broken)
+    config = TeachConfig(**SMALL)
+    app = PreferenceApp(PreferenceTeaching(config, open_session(config), render=False))
+    app.settle = 0.0
+    assert app.wait_ready(timeout=5)
+    app.buttons["left"].click()  # the click's handler raises into the kernel's log, not here
+    assert "Something went wrong" in app.message.value and "the learner broke" in app.message.value
+    assert "saved" in app.message.value and all(b.disabled for b in app.buttons.values())
+    assert [r["answer"] for r in lines(app.teaching.session.path)[1:]] == ["left"]
+    app.teaching.close()
+
+
 def test_an_unwritable_session_file_is_refused_before_the_first_query(results, monkeypatch):
     config = TeachConfig(**SMALL)
     open_session(config).close()
@@ -716,6 +747,42 @@ def _make_teach(env: dict[str, str], *settings: str) -> subprocess.CompletedProc
     return subprocess.run(command, cwd=root, env=env, capture_output=True, text=True, timeout=60)
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the parent-death signal is Linux's")
+@pytest.mark.parametrize("kill", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_a_kill_of_make_itself_stops_the_participants_server(tmp_path, kill):
+    # A researcher who kills `make teach`'s make (not the process group, as Ctrl-C does) must not leave
+    # the participant's server running on the port.
+    outer = ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEOVERRIDES")
+    env = {k: v for k, v in os.environ.items() if k not in outer}
+    env |= {"HIPREF_RESULTS_DIR": str(tmp_path / "results"), "HIPREF_CACHE_DIR": str(tmp_path / "cache")}
+    port = free_port()
+    root = Path(__file__).resolve().parents[1]
+    command = ["make", "-s", "-o", "install", "teach", "PARTICIPANT=K1", f"PORT={port}"]
+    pipe = subprocess.PIPE
+    make = subprocess.Popen(command, cwd=root, env=env, stdout=pipe, stderr=pipe, text=True)
+    try:
+        assert make.stdout is not None
+        for line in make.stdout:  # until the address, printed once the server listens
+            if f"http://127.0.0.1:{port}/" in line and line.startswith("participant K1"):
+                break
+        else:
+            said = make.stderr.read() if make.stderr else ""
+            if "cannot be rendered" in said:
+                pytest.skip(f"no GL here: {said.strip()}")
+            pytest.fail(f"make teach ended before serving: {said}")
+        make.send_signal(kill)
+        make.wait(timeout=20)
+        for _ in range(200):
+            if not server_module.port_in_use(port):
+                break
+            threading.Event().wait(0.1)
+        else:
+            pytest.fail(f"the server still listens on {port} 20 s after make was killed ({kill.name})")
+    finally:
+        if make.poll() is None:
+            make.kill()
+
+
 def test_make_teach_says_a_participant_set_in_the_shell_is_not_read(tmp_path):
     # make's own PARTICIPANT (empty) wins over the shell's; the command says so instead of only "missing",
     # and prints the shell's value as it is: neither make nor the shell runs it.
@@ -796,7 +863,8 @@ def test_make_teach_refuses_a_participant_served_before_with_other_settings(resu
     monkeypatch.setattr(make_teach, "participant_view", lambda _, parameters, out: out)
     monkeypatch.setattr(make_teach, "serve", lambda command, port, ready: None)
     port = str(free_port())
-    practice = practice_config(TeachConfig(teacher="person", participant="P9", true_parameter=0.6))
+    seed = participant.participant_seed("P9")
+    practice = practice_config(TeachConfig(teacher="person", participant="P9", true_parameter=0.6, seed=seed))
     SessionFile(results / "sessions" / "practice" / practice.session_name, practice.header()).close()
     participant_main(["P9", "--port", port, "--true-parameter", "0.6"])  # the same settings: served
     with pytest.raises(SystemExit) as stopped:

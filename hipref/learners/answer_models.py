@@ -17,9 +17,12 @@ preferred (i < N), 'skip' (column N) or 'equally good' (column N + 1). They mirr
 - 'distance': the nearest, wrong with probability confusion_max exp(-|d_a - d_b| / confusion_width) (pairs).
 
 Every model but 'flip' takes the uniform flip e on top of its rule, as the scripted teacher applies it last;
-'skip' and 'equally good' are never flipped. Ties (a truth exactly at a midpoint, or on the boundary of
-a rule: at exactly `skip_distance`, a margin of exactly `equal_margin`) split evenly, as the teacher's own
-rounding decides them.
+'skip' and 'equally good' are never flipped. A person also slips: with probability `lapse` (a lapse rate, as
+psychophysics fits one: Wichmann & Hill 2001) the answer is any of the candidates or 'equally good' (what a
+person can press), each as likely, so that no answer is impossible; every scripted teacher's lapse is 0.
+Flipping a uniform answer leaves it uniform, so the lapse and the flip may be applied in either order. Ties (a
+truth exactly at a midpoint, or on the boundary of a rule: at exactly `skip_distance`, a margin of exactly
+`equal_margin`) split evenly, as the teacher's own rounding decides them.
 """
 
 from __future__ import annotations
@@ -64,6 +67,8 @@ class AnswerModel:
     """'distance': the probability of a wrong answer for a pair equally near the truth."""
     confusion_width: Annotated[float, Range(1e-9, math.inf)] = 0.21
     """'distance': the difference of closeness over which that probability falls by a factor e."""
+    lapse: Annotated[float, Range(0.0, 1.0 - 1e-9)] = 0.0
+    """The probability of an answer at random among the candidates and 'equally good', in [0, 1)."""
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -78,6 +83,10 @@ class AnswerModel:
         out = np.zeros((*offsets.shape[:-1], n + 2))
         distances = np.abs(offsets)
         out[..., :n] = _RULES[self.kind](self, offsets, distances, out)
+        if self.lapse > 0:
+            out *= 1.0 - self.lapse
+            out[..., :n] += self.lapse / (n + 1)
+            out[..., EQUAL_COLUMN] += self.lapse / (n + 1)
         return with_flip(out, self.flip)
 
 
@@ -173,6 +182,17 @@ _RULES = {
     "myopic": _myopic,
     "distance": _distance,
 }
+
+
+PERSON_LAPSE = 0.05
+"""The lapse rate of the models a learner weighs for a person: the top of the range Wichmann & Hill (2001)
+fit to observers (0-6 %). A person presses "can't tell" where no scripted teacher would (two such answers to
+pairs with far apart midpoints leave no truth every model without a lapse allows)."""
+
+
+def person_family() -> tuple[AnswerModel, ...]:
+    """The hypotheses of the learner a person teaches: `model_family()`, each model with PERSON_LAPSE."""
+    return tuple(replace(model, lapse=PERSON_LAPSE) for model in model_family())
 
 
 def told(teacher: TeacherModel, noise: float) -> AnswerModel:

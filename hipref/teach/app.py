@@ -143,7 +143,8 @@ class AnswerPanel:
     def press(self, value: Any) -> None:
         """The person answers the question on screen (a button or a key). Ignored (and counted) while the
         question is not yet taking presses, and once all are answered. A failed write is shown, not raised:
-        nothing is recorded and the same question takes the next press."""
+        nothing is recorded and the same question takes the next press. Any other failure (the answer
+        written, the learner unable to go on) is shown with the buttons left off, and raised."""
         if self._finished() or not self._ready.is_set():
             self.ignored += 1
             return
@@ -161,6 +162,13 @@ class AnswerPanel:
             self._set_buttons(True)
             self._ready.set()
             return
+        except Exception as error:  # the answer is saved, but the learner cannot go on: say so, not freeze
+            self.error = error
+            self.message.value = (
+                "<b style='color:#d62728'>Something went wrong: please tell the experimenter.</b> Your "
+                f"answers so far are saved. <span style='color:#d62728'>({html.escape(str(error))})</span>"
+            )
+            raise  # in the server's log
         self.error, self.message.value = None, ""
         self._show()
         self._shown_at = time.perf_counter()

@@ -11,6 +11,7 @@ import numpy as np
 
 from hipref.envs.task import Task, probe_slice
 from hipref.experiments.domains import domain_spec
+from hipref.learners.answer_models import person_family
 from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.pesi import PESIConfig, PESILearner
 from hipref.learners.sysid import SIModel
@@ -44,9 +45,11 @@ def session_streams(config: TeachConfig) -> SessionStreams:
 
 
 def bayes_learner(config: TeachConfig, model: SIModel, seed: int) -> Learner:
-    """The Bayesian learner with the session's query rule, its prior SI's on the slice."""
+    """The Bayesian learner with the session's query rule, weighing every answer model with a person's
+    lapse (`person_family`: no answer, however many "can't tell", is impossible to it)."""
     candidates = domain_spec(config.domain).candidates
-    return BayesLearner(candidates, BayesConfig(query_rule=config.query_rule), seed, si_model=model)
+    bayes = BayesConfig(query_rule=config.query_rule, answer_models=person_family())
+    return BayesLearner(candidates, bayes, seed, si_model=model)
 
 
 def pesi_learner(config: TeachConfig, model: SIModel, seed: int) -> Learner:

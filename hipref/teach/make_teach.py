@@ -35,11 +35,12 @@ from hipref.teach.config import TeachConfig
 from hipref.teach.participant import (
     TASKS,
     condition_configs,
+    participant_seed,
     participant_view,
     practice_config,
     practice_path,
 )
-from hipref.teach.server import port_in_use, serve, voila_command
+from hipref.teach.server import end_with_parent, port_in_use, serve, voila_command
 from hipref.teach.session import OtherSession, SessionFile, SessionLocked
 
 TRUTH_SHARE = 0.75
@@ -77,6 +78,7 @@ def main(argv: list[str] | None = None) -> None:
     parameters = {
         "teacher": "person",
         "participant": args.participant,
+        "seed": participant_seed(args.participant),
         "conditions": list(args.conditions),
         "preference_queries": args.queries,
         "catch_every": args.catch_every,
@@ -113,7 +115,15 @@ def main(argv: list[str] | None = None) -> None:
         view = participant_view(
             root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
         )
-        print(f"participant {args.participant}: starting the server ...", flush=True)
+        spec = domain_spec(args.domain)
+        print(
+            f"participant {args.participant}: {args.domain}, true {spec.parameter} {truth:g} {spec.unit}, "
+            f"{args.queries} queries in each of {len(args.conditions)} part(s) "
+            f"({', '.join(args.conditions)}), a catch trial every {args.catch_every}: starting the server",
+            flush=True,
+        )
+        # `make teach` execs this process: killed (SIGTERM, SIGKILL), make takes it along, and it Voila.
+        end_with_parent(os.getppid())
         serve(
             voila_command(view, args.port),
             args.port,
@@ -173,7 +183,7 @@ def check_sessions(config: TeachConfig) -> None:
 MAKE_SETTINGS = {
     "domain": "DOMAIN",
     "true_parameter": "TRUE_PARAMETER",
-    "queries": "QUERIES",
+    "preference_queries": "QUERIES",
     "catch_every": "CATCH_EVERY",
     "conditions": "CONDITIONS",
 }

@@ -16,6 +16,7 @@ and only the cells tagged `participant` kept, which `make teach` (`hipref.teach.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import html
 import json
 from collections.abc import Callable
@@ -66,6 +67,13 @@ TASKS: dict[str, tuple[str, str, str]] = {
     ),
 }
 """Per domain: what the robot does, what it does not know, how a wrong guess shows."""
+
+
+def participant_seed(participant: str) -> int:
+    """A participant's seed: the first four bytes of the SHA-256 of their id. Each participant meets pairs,
+    sides and clip layouts of their own (the same on every visit and machine), so that no order or side is
+    common to every participant."""
+    return int.from_bytes(hashlib.sha256(participant.encode()).digest()[:4], "big")
 
 
 def condition_configs(config: TeachConfig) -> list[TeachConfig]:

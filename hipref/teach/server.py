@@ -22,12 +22,15 @@ def voila_command(view: Path, port: int) -> list[str]:
     """Voila serving the participant's `view` on loopback at `port` (and no other port), its code cells
     hidden, the kernels of closed pages shut down (CULL_SECONDS), and a kernel that dies removed rather than
     restarted: a restarted kernel has none of the page's widgets, so its page could only pretend to work;
-    removed, the page says so (`hipref.teach.notice`)."""
+    removed, the page says so (`hipref.teach.notice`). A page closed or reloaded shuts its kernel down at
+    once, releasing its session files: Voila's page asks so without the cross-site token its server wants,
+    which the server is told not to check (it listens on loopback only)."""
     return [
         sys.executable, "-m", "voila", str(view), "--no-browser", f"--port={port}", "--Voila.ip=127.0.0.1",
         "--Voila.port_retries=0", "--strip_sources=True", "--show_tracebacks=True",
         f"--MappingKernelManager.cull_idle_timeout={CULL_SECONDS}",
         f"--MappingKernelManager.cull_interval={CULL_EVERY}", "--KernelRestarter.restart_limit=0",
+        "--Voila.tornado_settings", "disable_check_xsrf=True",
     ]  # fmt: skip
 
 
@@ -41,6 +44,17 @@ PR_SET_PDEATHSIG = 1
 """Linux's prctl option: the signal a process gets when its parent dies."""
 
 
+def end_with_parent(parent: int) -> None:
+    """Ask Linux to send this process SIGTERM when its parent (pid `parent`) dies, however it dies; exit at
+    once if it has died already. Elsewhere, nothing."""
+    if not sys.platform.startswith("linux"):
+        return
+    if ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM) != 0:
+        raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+    if os.getppid() != parent:  # the parent died before the request: nobody to wait for
+        os._exit(1)
+
+
 def serve(command: list[str], port: int, ready: str, grace: float = 10.0) -> None:
     """Run the server until it ends or this process is interrupted (Ctrl-C, a kill), printing `ready` once
     it listens on `port` (not before: a page opened earlier would be refused); interrupted, the server is
@@ -49,17 +63,7 @@ def serve(command: list[str], port: int, ready: str, grace: float = 10.0) -> Non
     (SIGKILL, out of memory), so it never outlives it. A server that fails by itself ends this with one line
     and exit status 1."""
     parent = os.getpid()
-    prctl = ctypes.CDLL(None, use_errno=True).prctl if sys.platform.startswith("linux") else None
-
-    def end_with_parent() -> None:  # in the server's process, before it starts
-        if prctl is None:
-            return
-        if prctl(PR_SET_PDEATHSIG, signal.SIGTERM) != 0:
-            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
-        if os.getppid() != parent:  # the parent died before the request: nobody to wait for
-            os._exit(1)
-
-    server = subprocess.Popen(command, preexec_fn=end_with_parent)
+    server = subprocess.Popen(command, preexec_fn=lambda: end_with_parent(parent))
     try:
         while server.poll() is None and not port_in_use(port):
             time.sleep(0.1)
