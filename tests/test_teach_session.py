@@ -655,9 +655,7 @@ def test_a_start_button_acts_once_and_says_why_when_the_session_is_held(results,
     assert calls == [0, 1] and button.disabled
 
 
-def test_a_page_reloaded_while_the_practice_is_open_elsewhere_welcomes_back_without_a_traceback(
-    results, monkeypatch
-):
+def test_a_page_opened_while_the_practice_is_open_elsewhere_says_so_without_a_traceback(results, monkeypatch):
     config = TeachConfig(**{**SMALL, "preference_queries": 1, "catch_every": 2}, participant="P10")
 
     def held(path: Path, _: TeachConfig) -> bool:  # the earlier window's kernel still holds the practice
@@ -666,7 +664,8 @@ def test_a_page_reloaded_while_the_practice_is_open_elsewhere_welcomes_back_with
     monkeypatch.setattr(participant, "_practised", held)
     app = ParticipantApp(config, render=False)
     text, button, status = app.widget.children
-    assert "Welcome back" in text.value and button.description == "Continue"
+    assert "open in another window or tab" in text.value and "Welcome back" not in text.value
+    assert button.description == "Continue"
     button.click()
     assert "still open in an earlier window" in status.value and not button.disabled
 
@@ -880,6 +879,23 @@ def test_make_teach_refuses_a_participant_served_before_with_other_settings(resu
     with pytest.raises(SystemExit):
         participant_main(["P9", "--port", port, "--true-parameter", "17", "--domain", "pushing"])
     assert "(DOMAIN=wiping then, pushing now, TRUE_PARAMETER=0.6 then, 17.0 now; " in capsys.readouterr().err
+    # Every setting that differs in any of the participant's files, and the files, in one refusal.
+    served = TeachConfig(
+        teacher="person",
+        participant="P9",
+        true_parameter=0.6,
+        seed=seed,
+        preference_queries=12,
+        catch_every=4,
+        conditions=("uniform", "information_gain"),
+    )  # as `make teach PARTICIPANT=P9 TRUE_PARAMETER=0.6` serves it
+    (first, *_) = participant.condition_configs(served)
+    SessionFile(results / "sessions" / first.session_name, first.header()).close()
+    with pytest.raises(SystemExit):
+        participant_main(["P9", "--port", port, "--true-parameter", "0.7", "--queries", "10"])
+    said = capsys.readouterr().err
+    assert "(TRUE_PARAMETER=0.6 then, 0.7 now, QUERIES=12 then, 10 now; " in said
+    assert "sessions/practice/participant_P9_practice.jsonl, sessions/participant_P9_uniform.jsonl)" in said
 
 
 def test_make_teach_checks_the_very_headers_the_served_notebook_writes(results, monkeypatch, tmp_path):

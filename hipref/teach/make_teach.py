@@ -158,10 +158,13 @@ def pid_alive(pid: int) -> bool:
 
 def check_sessions(config: TeachConfig) -> None:
     """Refuse a participant whose practice or condition files were started with other settings: served
-    anyway, the practice answer would be replaced and the first part refused after it."""
+    anyway, the practice answer would be replaced and the first part refused after it. The refusal names
+    every setting that differs in any of the files, and the files."""
     practice = practice_config(config)
     files = [(practice_path(practice), practice)]
     files += [(results_dir() / "sessions" / c.session_name, c) for c in condition_configs(config)]
+    differ: list[str] = []
+    where: list[str] = []
     for path, session_config in files:
         if not path.exists():
             continue
@@ -172,12 +175,15 @@ def check_sessions(config: TeachConfig) -> None:
         except OSError as error:  # SessionUnwritable among them
             refuse(f"participant {config.participant}'s session cannot be opened: {error}")
         except ValueError as error:  # OtherSession among them
-            earlier = earlier_settings(error, session_config.header()) or str(error)
-            where = path.relative_to(results_dir()) if path.is_relative_to(results_dir()) else path
-            refuse(
-                f"participant {config.participant} was served before with other settings ({earlier}; "
-                f"{where}): serve them with those, or give this session another id"
-            )
+            differ += [
+                d for d in earlier_settings(error, session_config.header()) or [str(error)] if d not in differ
+            ]
+            where.append(str(path.relative_to(results_dir()) if path.is_relative_to(results_dir()) else path))
+    if differ:
+        refuse(
+            f"participant {config.participant} was served before with other settings ({', '.join(differ)}; "
+            f"{', '.join(where)}): serve them with those, or give this session another id"
+        )
 
 
 MAKE_SETTINGS = {
@@ -190,21 +196,21 @@ MAKE_SETTINGS = {
 """The session header's fields a researcher sets on `make teach`'s command line, by their names there."""
 
 
-def earlier_settings(error: ValueError, header: dict[str, Any]) -> str:
+def earlier_settings(error: ValueError, header: dict[str, Any]) -> list[str]:
     """What a session file refused as `OtherSession` was started with where it differs from `header`, as
     `make teach`'s settings ('DOMAIN=pushing then, wiping now'); empty for another refusal, or when only the
     file's format differs."""
     if not isinstance(error, OtherSession):
-        return ""
+        return []
 
     def shown(value: Any) -> str:
         return " ".join(map(str, value)) if isinstance(value, list) else str(value)
 
-    return ", ".join(
+    return [
         f"{MAKE_SETTINGS.get(k, k)}={shown(error.stored.get(k))} then, {shown(header.get(k))} now"
         for k in error.differ
         if k != "format"
-    )
+    ]
 
 
 @contextlib.contextmanager

@@ -50,7 +50,12 @@ Your answers are saved as you give them; you may close the window and come back.
 """
 FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts}."
 COMING_BACK = "Welcome back: you go on where you stopped ({queries} pairs in {parts} in all)."
-"""The plan the instructions give: before the practice pair, or to a participant who answered it."""
+OPEN_ELSEWHERE = (
+    "This session is open in another window or tab ({queries} pairs in {parts} in all): close that one, then "
+    "press the button."
+)
+"""The plan the instructions give: before the practice pair, to a participant who answered it, or while
+another window holds the practice (a second tab, or a window closed moments ago)."""
 
 TASKS: dict[str, tuple[str, str, str]] = {
     "wiping": (
@@ -120,10 +125,11 @@ class ParticipantApp:
         practice = practice_config(config)
         try:
             back = _practised(practice_path(practice), practice)
-        except SessionLocked:  # a window still open holds it: the start button says so
-            back = True
+            plan = COMING_BACK if back else FIRST_VISIT
+        except SessionLocked:  # a window still open holds it: the start button says so again
+            back, plan = True, OPEN_ELSEWHERE
         parts = "one part" if len(self.conditions) == 1 else f"{len(self.conditions)} parts"
-        plan = (COMING_BACK if back else FIRST_VISIT).format(queries=queries, parts=parts)
+        plan = plan.format(queries=queries, parts=parts)
         text = INSTRUCTIONS.format(task=task, parameter=parameter, symptom=symptom, plan=plan)
         self._screen(text, "Continue" if back else "Start the practice pair", self._start_practice)
 
