@@ -249,6 +249,10 @@ class AnswersConfig(SIStudy):
         """Each domain's held-out true parameters (`held_out_heights`, `held_out_masses`)."""
         return {domain: getattr(self, f"held_out_{spec.truths}") for domain, spec in DOMAINS.items()}
 
+    def held_out_environments(self, domain: str) -> list[tuple[float, int]]:
+        """The held-out (ground truth, seed) of `domain`: its held-out truths x `held_out_seeds`."""
+        return [(truth, seed) for truth in self.held_out_grids()[domain] for seed in self.held_out_seeds]
+
     def held_out_cells(self) -> list[AnswersCell]:
         """The held-out replication: the paper's teacher at each of `blind_noise_levels` under information
         gain, told its model, its kind or nothing, on the held-out truths x seeds."""
@@ -259,8 +263,7 @@ class AnswersConfig(SIStudy):
             for domain in self.domains
             for noise in self.blind_noise_levels
             for told in TOLD
-            for truth in self.held_out_grids()[domain]
-            for seed in self.held_out_seeds
+            for truth, seed in self.held_out_environments(domain)
         ]
 
     def task_environments(self, domain: str) -> list[tuple[float, int]]:
@@ -292,20 +295,7 @@ class AnswersConfig(SIStudy):
         """The task part: every learner at every flip rate (CO-PESI above 0), the Bayesian ones under every
         rule, PESI and CO-PESI under uniform pairs; each run ends at the last checkpoint."""
         return [
-            replace(
-                self.run_cell(
-                    domain,
-                    method,
-                    truth,
-                    seed,
-                    fine_tuning=FineTuning(
-                        PESIConfig(learning_rate=self.learning_rate, candidate_sampling=rule)
-                    ),
-                    noise=noise,
-                    checkpoints=self.checkpoints,
-                ),
-                episodes=self.checkpoints[-1],
-            )
+            self._task_run(domain, method, truth, seed, rule, noise, self.checkpoints)
             for domain in self.domains
             for noise in self.task_noise_levels
             for method in self.methods
@@ -319,51 +309,48 @@ class AnswersConfig(SIStudy):
         """The success claims replicated on the held-out truths x seeds: the Bayesian learner told nothing
         of the teacher, asking by information gain at each of `task_noise_levels`, evaluated before any
         answer and after SUCCESS_AFTER, and the true parameter on the same evaluation episodes."""
-        runs = [
-            replace(
-                self.run_cell(
-                    domain,
-                    "bayes",
-                    truth,
-                    seed,
-                    fine_tuning=FineTuning(
-                        PESIConfig(learning_rate=self.learning_rate, candidate_sampling="information_gain")
-                    ),
-                    noise=noise,
-                    checkpoints=(0, SUCCESS_AFTER),
-                ),
-                episodes=SUCCESS_AFTER,
-            )
+        checkpoints = (0, SUCCESS_AFTER)
+        runs: list[SIRun | AtTruth] = [
+            self._task_run(domain, "bayes", truth, seed, "information_gain", noise, checkpoints)
             for domain in self.domains
             for noise in self.task_noise_levels
-            for truth in self.held_out_grids()[domain]
-            for seed in self.held_out_seeds
+            for truth, seed in self.held_out_environments(domain)
         ]
-        at_truth = [
-            AtTruth(
-                replace(
-                    self.run_cell(domain, "osi", truth, seed, checkpoints=(0, SUCCESS_AFTER)),
-                    episodes=SUCCESS_AFTER,
-                )
-            )
+        return runs + [
+            self._at_truth(domain, truth, seed, checkpoints)
             for domain in self.domains
-            for truth in self.held_out_grids()[domain]
-            for seed in self.held_out_seeds
+            for truth, seed in self.held_out_environments(domain)
         ]
-        return [*runs, *at_truth]
 
     def truth_cells(self) -> list[AtTruth]:
         """The task part's reference: each environment's evaluation episodes with the true parameter."""
         return [
-            AtTruth(
-                replace(
-                    self.run_cell(domain, "osi", truth, seed, checkpoints=self.checkpoints),
-                    episodes=self.checkpoints[-1],
-                )
-            )
+            self._at_truth(domain, truth, seed, self.checkpoints)
             for domain in self.domains
             for truth, seed in self.task_environments(domain)
         ]
+
+    def _task_run(
+        self,
+        domain: str,
+        method: str,
+        truth: float,
+        seed: int,
+        rule: str,
+        noise: float,
+        checkpoints: tuple[int, ...],
+    ) -> SIRun:
+        """One run of the task part, asking by `rule`, evaluated at `checkpoints` and ending at the last."""
+        tuning = FineTuning(PESIConfig(learning_rate=self.learning_rate, candidate_sampling=rule))
+        run = self.run_cell(
+            domain, method, truth, seed, fine_tuning=tuning, noise=noise, checkpoints=checkpoints
+        )
+        return replace(run, episodes=checkpoints[-1])
+
+    def _at_truth(self, domain: str, truth: float, seed: int, checkpoints: tuple[int, ...]) -> AtTruth:
+        """The true parameter on the evaluation episodes of an environment's task runs at `checkpoints`."""
+        run = self.run_cell(domain, "osi", truth, seed, checkpoints=checkpoints)
+        return AtTruth(replace(run, episodes=checkpoints[-1]))
 
 
 @dataclass(frozen=True)
