@@ -397,12 +397,11 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
         for pid in kernel_processes(kernel_id):
             os.kill(pid, signal.SIGKILL)
         notice.get_by_text(KERNEL_GONE).wait_for(timeout=30_000)
-        # Reloaded, it goes on where it stopped (every part answered: the closing screen); then the server
-        # stops, and the page says that.
+        # Reloaded, it goes on where it stopped: every part answered, the closing screen and its count; then
+        # the server stops, and the page says that.
         page.reload(timeout=240_000)
-        screen.get_by_text("Welcome back").wait_for(timeout=240_000)
-        screen.get_by_role("button", name="Continue").click()
-        screen.get_by_text("Thank you").wait_for(timeout=120_000)
+        screen.get_by_text("All 2 answers are saved").wait_for(timeout=240_000)
+        assert screen.get_by_text("Welcome back").count() == 0
         assert notice.is_hidden()
         server.terminate()
         notice.get_by_text(SERVER_STOPPED).wait_for(timeout=30_000)

@@ -607,9 +607,11 @@ def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(r
     assert set(table["participant"]) == {"P1"} and len(table) == 4
     assert set(table["teacher"]) == {"person"}  # a person's answers, which notebook 09's outputs leave out
     assert lines(sessions / "practice" / "participant_P1_practice.jsonl")[1]["answer"] == shown.side_of(1)
-    # Coming back, the finished conditions are skipped to the closing screen.
+    # Coming back after the last answer: the closing screen, not a welcome back to nothing left.
     again = ParticipantApp(config, render=False)
-    again._start_condition(0)
+    assert len(again.widget.children) == 1 and "All 4 answers are saved" in again.widget.children[0].value
+    assert "Welcome back" not in again.widget.children[0].value
+    again._start_condition(0)  # the same when the last part is finished while a page is open
     assert "Thank you" in again.widget.children[0].value
 
 

@@ -8,7 +8,7 @@ answer before the learner is told. `answer_as_scripted` plays the person: it pre
 (`Button.click` runs the same callbacks), so papermill and nbval execute the whole path headlessly.
 
 A press answers the question on screen only: from a press until the next question has been on screen for
-`SETTLE_SECONDS`, the buttons are disabled and say why ("preparing the next pair"), and every press or key
+`SETTLE_SECONDS`, the buttons are disabled and say why ("preparing…"), and every press or key
 that arrives meanwhile (a double click, a key held, a click queued while the kernel was busy) is ignored
 and counted. Keys act only while the pointer is over the widget, which then holds the keyboard focus
 (ipyevents), and the widget says whether they do. A failed write (a full disk, a file made read-only) is
@@ -49,8 +49,8 @@ LABELS: dict[str, str] = {"left": "◀ left", "right": "right ▶", "cant_tell":
 SETTLE_SECONDS = 0.5
 """Seconds a new question is on screen before presses count: longer than a double click's two presses
 apart, shorter than anyone judges a clip in."""
-PREPARING = "preparing the next pair…"
-"""What the disabled buttons say between a press and the next question."""
+PREPARING = "preparing…"
+"""What the disabled buttons say between a press and the next question (it fits a button's default width)."""
 KEYS_HINT = (
     "<style>.hipref-keys-on{display:none;color:#2ca02c}.ipyevents-watched .hipref-keys-on{display:inline}"
     ".ipyevents-watched .hipref-keys-off{display:none}.hipref-keys-off{color:#888}</style>"

@@ -16,7 +16,7 @@ from functools import partial
 from typing import Any
 
 import numpy as np
-from PIL import Image, ImageDraw
+from PIL import Image, ImageDraw, ImageFont
 
 from hipref.control.tool import FORCE_Z
 from hipref.envs.pushing import PushingTask
@@ -33,11 +33,22 @@ GOAL, CUBE = (44, 160, 44), (255, 127, 14)
 """Colours of the pushing strip's goal mark and cube."""
 
 
-def caption(draw: ImageDraw.ImageDraw, text: str, colour: tuple[int, int, int]) -> None:
-    """`text` at the frame's top left, on white (the scenes are dark there)."""
-    left, top, right, bottom = draw.textbbox((4, 4), text)
+FONT = ImageFont.load_default(size=14)
+"""The marks' lettering: Pillow's own scalable font, at a size readable on a 320-pixel-wide clip."""
+Colour = tuple[int, int, int]
+"""An RGB colour, 0-255."""
+
+
+def label(draw: ImageDraw.ImageDraw, at: tuple[float, float], text: str, colour: Colour) -> None:
+    """`text` with its top left at `at`, on white (the scenes are dark)."""
+    left, top, right, bottom = draw.textbbox(at, text, font=FONT)
     draw.rectangle((left - 3, top - 3, right + 3, bottom + 3), fill=(255, 255, 255))
-    draw.text((4, 4), text, fill=colour)
+    draw.text(at, text, fill=colour, font=FONT)
+
+
+def caption(draw: ImageDraw.ImageDraw, text: str, colour: Colour) -> None:
+    """`text` at the frame's top left, on white."""
+    label(draw, (4, 4), text, colour)
 
 
 def force_gauge(frame: np.ndarray, force: float, band: tuple[float, float]) -> np.ndarray:
@@ -59,7 +70,9 @@ def force_gauge(frame: np.ndarray, force: float, band: tuple[float, float]) -> n
         (SAFE, "safe") if low <= force <= high else (HARD, "too hard") if force > high else (OFF, "off")
     )
     draw.rectangle((left + 4, level(force), right - 4, bottom), fill=colour)
-    draw.text((left - 2, level(high) - 11), f"{high:g}", fill=(0, 0, 0))
+    mark = f"{high:g}"  # the safe band's top, left of the gauge
+    draw.line((left - 4, level(high), left, level(high)), fill=(255, 255, 255), width=1)
+    label(draw, (left - 8 - draw.textlength(mark, font=FONT), level(high) - 8), mark, (0, 0, 0))
     caption(draw, f"contact force {max(force, 0.0):.0f} N: {words}", colour)
     return np.asarray(image)
 

@@ -50,6 +50,11 @@ Your answers are saved as you give them; you may close the window and come back.
 """
 FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts}."
 COMING_BACK = "Welcome back: you go on where you stopped ({queries} pairs in {parts} in all)."
+FINISHED = (
+    "<h2>Thank you!</h2><p>All {answered} answers are saved (participant {participant}). You may close this "
+    "window.</p>"
+)
+"""The closing screen: after the last answer, and to a participant who comes back after it."""
 OPEN_ELSEWHERE = (
     "This session is open in another window or tab ({queries} pairs in {parts} in all): close that one, then "
     "press the button."
@@ -126,6 +131,9 @@ class ParticipantApp:
         try:
             back = _practised(practice_path(practice), practice)
             plan = COMING_BACK if back else FIRST_VISIT
+            if back and (answered := _answered_all(self.conditions)) is not None:
+                self._thank(answered)  # a visit after the last answer
+                return
         except SessionLocked:  # a window still open holds it: the start button says so again
             back, plan = True, OPEN_ELSEWHERE
         parts = "one part" if len(self.conditions) == 1 else f"{len(self.conditions)} parts"
@@ -223,13 +231,11 @@ class ParticipantApp:
         self.widget.children = [widgets.HTML(part), app.widget]
 
     def _close(self) -> None:
-        answered = sum(app.teaching.answered for app in self.apps)
-        self.widget.children = [
-            widgets.HTML(
-                f"<h2>Thank you!</h2><p>All {answered} answers are saved (participant "
-                f"{self.config.participant}). You may close this window.</p>"
-            )
-        ]
+        self._thank(sum(app.teaching.answered for app in self.apps))
+
+    def _thank(self, answered: int) -> None:
+        text = FINISHED.format(answered=answered, participant=html.escape(self.config.participant))
+        self.widget.children = [widgets.HTML(text)]
 
 
 def _practised(path: Path, config: TeachConfig) -> bool:
@@ -243,6 +249,26 @@ def _practised(path: Path, config: TeachConfig) -> bool:
     answered = bool(session.of_kind("preference"))
     session.close()
     return answered
+
+
+def _answered_all(conditions: list[TeachConfig]) -> int | None:
+    """The answers of a participant who has answered every condition's queries (their sessions opened, read
+    and closed), else None; a condition not yet started is not created."""
+    total = 0
+    for config in conditions:
+        path = results_dir() / "sessions" / config.session_name
+        if not path.exists():
+            return None
+        try:
+            session = SessionFile(path, config.header())
+        except ValueError:  # another session's file: the part refuses it when started
+            return None
+        answered = len(session.of_kind("preference"))
+        session.close()
+        if answered < config.preference_queries:
+            return None
+        total += answered
+    return total
 
 
 def _why_not(error: SessionLocked | SessionUnwritable) -> str:
