@@ -1001,7 +1001,7 @@ def test_notebook_09_run_with_a_participant_shows_the_screens_then_stops_saying_
     stopped = shell.run_cell(cells[2])
     assert type(stopped.error_in_exec).__name__ == "ParticipantMode"
     shown = capsys.readouterr().out
-    assert "Teach a robot" in shown
+    assert "[the participant's screens: interactive" in shown  # the screens' widget, shown as plain text
     assert "Stopped here:" in shown and "make teach PARTICIPANT=P1" in shown
     assert "Traceback" not in shown and "NameError" not in shown
 

@@ -74,6 +74,19 @@ GRID_LEGEND = (
 """What the feedback grid's marks mean, and what an answer does."""
 
 
+class Panel(widgets.VBox):
+    """A VBox whose plain text says what it is: what a notebook viewer shows where it cannot draw the widget
+    (JupyterLab 4 does not redraw a widget from the state saved in a notebook, jupyterlab/jupyterlab#15361),
+    in place of ipywidgets' dump of its children."""
+
+    def __init__(self, children: list[widgets.Widget], what: str) -> None:
+        super().__init__(children)
+        self.what = what
+
+    def __repr__(self) -> str:
+        return f"[{self.what}: interactive, drawn while its notebook runs; run the cells to see it]"
+
+
 class AnswerPanel:
     """A question on screen, answered with buttons or keys (while the mouse is over it), each press timed."""
 
@@ -81,14 +94,16 @@ class AnswerPanel:
     """Key -> the answer it gives."""
     buttons: Mapping[Any, widgets.Button]
 
-    def _build(self, css_class: str, children: list[widgets.Widget], keys: str, teacher: str) -> None:
+    def _build(
+        self, css_class: str, children: list[widgets.Widget], keys: str, teacher: str, what: str
+    ) -> None:
         self.scripted = teacher == "scripted"
         """A person's answer times are measured; the scripted stand-in answers the moment a question is
         shown (0 s), so that its session file is the same bytes on every run."""
         self.keys_hint = widgets.HTML(KEYS_HINT.replace("{keys}", html.escape(keys)))
         self.message = widgets.HTML()
         """A failed write, in red; empty otherwise."""
-        self.widget = widgets.VBox([*children, self.keys_hint, self.message])
+        self.widget = Panel([*children, self.keys_hint, self.message], what)
         self.widget.add_class(css_class)
         self.keys = Event(source=self.widget, watched_events=["keydown"], prevent_default_action=True)
         self.keys.on_dom_event(self._on_key)
@@ -219,7 +234,8 @@ class PreferenceApp(AnswerPanel):
         self.status = widgets.HTML()
         buttons = widgets.HBox(list(self.buttons.values()))
         children = [self.heading, self.clips, buttons, self.progress, self.status]
-        self._build("hipref-preferences", children, "← → ↓", teaching.config.teacher)
+        teacher = teaching.config.teacher
+        self._build("hipref-preferences", children, "← → ↓", teacher, "the preference queries")
 
     def clear_clips(self) -> None:
         """Drop the clips from the widgets: a notebook saved with its widgets' state would keep them."""
@@ -285,7 +301,7 @@ class FeedbackApp(AnswerPanel):
         buttons = widgets.HBox(list(self.buttons.values()))
         legend = widgets.HTML(f"<small>{GRID_LEGEND}</small>")
         children = [self.heading, self.grid, legend, buttons, self.progress]
-        self._build("hipref-feedback", children, "1, 0, −", teaching.config.teacher)
+        self._build("hipref-feedback", children, "1, 0, −", teaching.config.teacher, "the feedback steps")
 
     def _finished(self) -> bool:
         return self.teaching.done

@@ -28,7 +28,7 @@ from IPython.display import display
 
 from hipref.experiments.domains import domain_spec
 from hipref.results import results_dir
-from hipref.teach.app import PreferenceApp
+from hipref.teach.app import Panel, PreferenceApp
 from hipref.teach.config import TeachConfig
 from hipref.teach.preferences import PreferenceTeaching
 from hipref.teach.server import CULL_EVERY, CULL_SECONDS
@@ -120,7 +120,7 @@ class ParticipantApp:
         self.render = render
         """Render the clips (False: the queries without their clips, for tests)."""
         self.conditions = condition_configs(config)
-        self.widget = widgets.VBox()
+        self.widget = Panel([], "the participant's screens")
         self.widget.add_class("hipref-participant")
         self.apps: list[PreferenceApp] = []
         """The conditions' widgets, in the order met."""
