@@ -15,7 +15,8 @@ import pandas as pd
 import pytest
 
 from hipref import sweep
-from hipref.sweep import SweepError, cached_artefact, cell_key, engine, run_sweep
+from hipref.sweep import SweepError, cached_artefact, cell_key, run_sweep
+from hipref.sweep import progress as sweep_progress
 from hipref.sweep.cache import NOT_IN_ROWS, without_docstrings
 from tests._sweep_cells import (
     ThreadsCell,
@@ -151,7 +152,7 @@ def test_second_run_recomputes_nothing(tmp_path: Path, log_dir: Path, workers: i
 def test_progress_counts_cached_cells_as_done(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(engine, "_shows_bars", lambda: True)  # as on a terminal
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)  # as on a terminal
     cells = grid()
     run_sweep(toy_cell, cells[:4], cache_dir=tmp_path, workers=1, desc="first")
     capsys.readouterr()
@@ -159,6 +160,30 @@ def test_progress_counts_cached_cells_as_done(
     progress = capsys.readouterr()
     assert progress.out == ""
     assert "second" in progress.err and "4/6" in progress.err and "6/6" in progress.err
+
+
+def test_no_progress_goes_to_a_file_or_a_pipe(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run_sweep(toy_cell, grid(), cache_dir=tmp_path, workers=1, desc="piped")
+    assert capsys.readouterr() == ("", "")
+
+
+def test_a_notebook_shows_one_line_updated_to_its_last_state(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """In a kernel the line is one output re-sent under its display id (here, an IPython shell prints each
+    sending): the saved notebook holds the last, with the cells read from the cache."""
+    from IPython.core.interactiveshell import InteractiveShell
+
+    InteractiveShell.instance()
+    monkeypatch.setattr(sweep_progress, "EVERY", 0.0)
+    monkeypatch.setattr(sweep_progress, "in_kernel", lambda: True)
+    cells = grid()
+    run_sweep(toy_cell, cells[:4], cache_dir=tmp_path, workers=1, desc="first")
+    capsys.readouterr()
+    run_sweep(toy_cell, cells, cache_dir=tmp_path, workers=1, desc="second")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("second: 66%| 4 of 6 cells, 4 from the cache, ")
+    assert lines[-1].startswith("second: 100%| 6 of 6 cells, 4 from the cache, ") and lines[-1].endswith(" s")
 
 
 def test_workers_must_be_positive() -> None:

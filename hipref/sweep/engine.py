@@ -27,8 +27,6 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from tqdm.auto import tqdm
-
 from hipref.numerics import one_thread, warn_overrides
 from hipref.results import repo_root, write_bytes
 from hipref.sweep.cache import (
@@ -42,6 +40,7 @@ from hipref.sweep.cache import (
     store_cell,
 )
 from hipref.sweep.entries import check_writable
+from hipref.sweep.progress import progress
 from hipref.validation import check_fields
 
 if TYPE_CHECKING:
@@ -265,12 +264,6 @@ def _check_sweep_input(fn: CellFn, cells: Sequence[Any], workers: Any) -> None:
             check_fields(cell, getattr(cell, "SEQUENCES", ()))
 
 
-def _shows_bars() -> bool:
-    """A progress bar for a terminal or a notebook; none when stderr goes to a file or a pipe, where each
-    update would only lengthen one line."""
-    return sys.stderr.isatty() or type(sys.stderr).__module__.startswith("ipykernel")
-
-
 def run_sweep(
     fn: CellFn,
     cells: Sequence[Any],
@@ -310,9 +303,8 @@ def run_sweep(
 
     failures: dict[str, str] = {}
     initial = len(cells) - sum(count[key] for key in pending)
-    with tqdm(
-        total=len(cells), initial=initial, desc=desc, unit="cell", file=sys.stderr, disable=not _shows_bars()
-    ) as bar:
+    bar = progress(len(cells), initial, desc)
+    with contextlib.closing(bar):
         if pending:
             address = scheduler or os.environ.get("HIPREF_DASK_SCHEDULER")
             if address:
