@@ -122,6 +122,9 @@ lab: install
 # read as make's or the shell's code. The command replaces the recipe's shell (exec) and ends with make, so a
 # kill of make stops the server too.
 SHELL_PARTICIPANT := $(if $(filter environment,$(origin PARTICIPANT)),$(value PARTICIPANT))
+# A setting make teach does not know (a typo, QUERY=4) is refused rather than silently ignored.
+TEACH_SETTINGS := PARTICIPANT CONDITIONS CATCH_EVERY PORT DOMAIN QUERIES TRUE_PARAMETER PYTHON
+TEACH_UNKNOWN = $(filter-out $(TEACH_SETTINGS),$(foreach v,$(.VARIABLES),$(if $(filter command line,$(origin $(v))),$(v))))
 PARTICIPANT =
 CONDITIONS = uniform information_gain
 CATCH_EVERY = 4
@@ -138,6 +141,7 @@ teach: override export QUERIES := $(value QUERIES)
 teach: override export TRUE_PARAMETER := $(value TRUE_PARAMETER)
 teach: override export SHELL_PARTICIPANT := $(value SHELL_PARTICIPANT)
 teach: install
+	@test -z '$(TEACH_UNKNOWN)' || { echo 'make teach: unknown setting(s) $(TEACH_UNKNOWN); make teach takes $(TEACH_SETTINGS)' >&2; exit 2; }
 	@test -n "$$PARTICIPANT" || { test -z "$$SHELL_PARTICIPANT" || \
 		printf 'make teach: PARTICIPANT=%s is set in the shell, which make teach does not read\n' "$$SHELL_PARTICIPANT" >&2; \
 		echo 'make teach PARTICIPANT=<id>: the participant id is missing' >&2; exit 2; }

@@ -370,6 +370,10 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
         page.goto(f"http://127.0.0.1:{port}/", timeout=240_000)  # Voila runs the cells before serving
         screen = page.locator(".hipref-participant")
         screen.get_by_text("Teach a robot").wait_for(timeout=120_000)
+        # A second window left on the instructions (it holds no session file) sees the server stop at the end.
+        waiting = browser.new_page(viewport={"width": 1100, "height": 800})
+        waiting.goto(f"http://127.0.0.1:{port}/", timeout=240_000)
+        waiting.locator(".hipref-participant").get_by_text("Teach a robot").wait_for(timeout=120_000)
         screen.get_by_role("button", name="Start the practice pair").click()
         screen.get_by_text("Query 1 of 1").wait_for(timeout=240_000)
         # Reloaded before any answer: the closed page's kernel is shut down at once, so the practice file it
@@ -380,10 +384,9 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
         screen.get_by_role("button", name="◀ left").click()
         screen.get_by_text("clip was the better one").wait_for(timeout=60_000)
         screen.get_by_role("button", name="Start", exact=True).click()
-        for query in (1, 2):
-            screen.get_by_text(f"Query {query} of 2").wait_for(timeout=120_000)
-            screen.get_by_role("button", name="right ▶").click()
-        screen.get_by_text("Thank you").wait_for(timeout=60_000)
+        screen.get_by_text("Query 1 of 2").wait_for(timeout=120_000)
+        screen.get_by_role("button", name="right ▶").click()
+        screen.get_by_text("Query 2 of 2").wait_for(timeout=120_000)
         # Not a line of code on the page: no input area, no editor, no cell prompt.
         assert (
             page.locator(".jp-InputArea, .jp-Editor, .cm-editor, .CodeMirror, .jp-InputPrompt").count() == 0
@@ -391,20 +394,29 @@ def test_a_participant_answers_in_voila_without_seeing_code(tmp_path):
         assert "participant_screen" not in page.content()
         notice = page.locator(f".{NOTICE_CLASS}")
         assert notice.is_hidden()
-        # The page's kernel dies: the page says so, rather than keep buttons that reach nothing.
+        # The page's kernel dies mid-part: the page says so, rather than keep buttons that reach nothing.
         config = page.evaluate("document.getElementById('jupyter-config-data').textContent")
         kernel_id = json.loads(config)["kernelId"]
         for pid in kernel_processes(kernel_id):
             os.kill(pid, signal.SIGKILL)
         notice.get_by_text(KERNEL_GONE).wait_for(timeout=30_000)
-        # Reloaded, it goes on where it stopped: every part answered, the closing screen and its count; then
-        # the server stops, and the page says that.
+        # Reloaded, it goes on where it stopped: the second query, then the closing screen with its count.
+        page.reload(timeout=240_000)
+        screen.get_by_text("Welcome back").wait_for(timeout=240_000)
+        screen.get_by_role("button", name="Continue").click()
+        screen.get_by_text("Query 2 of 2").wait_for(timeout=120_000)
+        screen.get_by_role("button", name="right ▶").click()
+        screen.get_by_text("All 2 answers are saved").wait_for(timeout=60_000)
+        # Reloaded after the last answer: the closing screen again, not a welcome back to nothing left.
         page.reload(timeout=240_000)
         screen.get_by_text("All 2 answers are saved").wait_for(timeout=240_000)
         assert screen.get_by_text("Welcome back").count() == 0
         assert notice.is_hidden()
+        # The experimenter stops the server: the waiting window says so; the finished one keeps its thanks.
         server.terminate()
-        notice.get_by_text(SERVER_STOPPED).wait_for(timeout=30_000)
+        waiting.locator(f".{NOTICE_CLASS}").get_by_text(SERVER_STOPPED).wait_for(timeout=30_000)
+        page.wait_for_timeout(2_000)  # past the finished page's next poll, had it kept asking
+        assert notice.is_hidden() and screen.get_by_text("All 2 answers are saved").is_visible()
         browser.close()
     sessions = results / "sessions"
     header, *stored = [

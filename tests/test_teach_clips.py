@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hipref.teach.app import GRID_LEGEND, QUESTIONS
-from hipref.teach.clips import GAUGE_TOP, HARD, SAFE, force_gauge, push_strip
+from hipref.teach.clips import CUBE, GAUGE_TOP, GOAL, HARD, SAFE, force_gauge, push_strip
 
 FRAME = np.zeros((240, 320, 3), dtype=np.uint8)
 BAND = (1.0, 60.0)
@@ -36,10 +36,10 @@ def test_the_gauge_of_a_sponge_not_touching_shows_the_safe_band_unfilled():
 
 def test_the_strip_puts_the_cube_before_its_goal_when_short_and_after_it_when_past():
     def cube_x(marked: np.ndarray) -> float:
-        return float(np.flatnonzero(np.all(marked[-12] == (255, 127, 14), axis=-1)).mean())
+        return float(np.flatnonzero(np.all(marked[-12] == CUBE, axis=-1)).mean())
 
     def goal_x(marked: np.ndarray) -> float:
-        return float(np.flatnonzero(np.all(marked[-12 - 8] == (44, 160, 44), axis=-1)).mean())
+        return float(np.flatnonzero(np.all(marked[-12 - 8] == GOAL, axis=-1)).mean())
 
     short, past = push_strip(FRAME, 0.10, 0.30), push_strip(FRAME, 0.40, 0.30)
     assert cube_x(short) < goal_x(short) < cube_x(past)

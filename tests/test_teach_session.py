@@ -635,6 +635,38 @@ def test_a_participant_who_comes_back_skips_the_practice_and_keeps_its_answer(re
     again.apps[0].teaching.close()
 
 
+def test_a_part_met_again_by_refused_presses_is_counted_once_on_the_closing_screen(results, monkeypatch):
+    config = TeachConfig(
+        **{**SMALL, "preference_queries": 1, "catch_every": 2},
+        participant="P11",
+        conditions=("uniform", "information_gain"),
+    )
+    first = ParticipantApp(config, render=False)
+    first.widget.children[1].click()
+    first.practice.press_as_scripted("left")
+    first.widget.children[1].click()  # part 1
+    first.apps[0].press_as_scripted("left")  # part 1 done; the window closes at the break
+    # A second window: part 2 is held elsewhere (an earlier window not yet shut down) for two presses.
+    opened = participant.SessionFile
+    held = iter([True, True])
+
+    def part_two_held(path, header, **kwargs):
+        if "information_gain" in Path(path).name and next(held, False):
+            raise SessionLocked(f"{Path(path).name} is open in another live session (pid 1 on host h)")
+        return opened(path, header, **kwargs)
+
+    monkeypatch.setattr(participant, "SessionFile", part_two_held)
+    again = ParticipantApp(config, render=False)
+    button, status = again.widget.children[1:]
+    button.click()
+    button.click()  # refused twice, each time passing the finished part 1 on the way
+    assert "still open in an earlier window" in status.value
+    button.click()
+    assert "Part 2 of 2" in again.widget.children[0].value
+    again.apps[-1].press_as_scripted("left")
+    assert "All 2 answers are saved" in again.widget.children[0].value
+
+
 def test_a_start_button_acts_once_and_says_why_when_the_session_is_held(results, monkeypatch):
     config = TeachConfig(**{**SMALL, "preference_queries": 1, "catch_every": 2}, participant="P3")
     app = ParticipantApp(config, render=False)
@@ -650,7 +682,7 @@ def test_a_start_button_acts_once_and_says_why_when_the_session_is_held(results,
     app._screen("instructions", "Start the practice pair", app._start_practice)
     button, status = app.widget.children[1:]
     button.click()  # the session is held by a window not yet closed: said, and the button works again
-    assert "still open in an earlier window" in status.value and "again in 90 seconds" in status.value
+    assert "still open in an earlier window" in status.value and "within 90 seconds" in status.value
     assert not button.disabled
     button.click()
     button.click()  # a second press while the next screen is prepared: ignored
@@ -784,6 +816,15 @@ def test_a_kill_of_make_itself_stops_the_participants_server(tmp_path, kill):
             make.kill()
 
 
+def test_make_teach_refuses_a_setting_it_does_not_know():
+    done = _make_teach(dict(os.environ), "PARTICIPANT=P1", "QUERY=4", "DOMIAN=pushing")
+    assert (done.returncode, done.stdout) == (2, "")
+    assert done.stderr.splitlines()[0] == (
+        "make teach: unknown setting(s) DOMIAN QUERY; make teach takes PARTICIPANT CONDITIONS CATCH_EVERY "
+        "PORT DOMAIN QUERIES TRUE_PARAMETER PYTHON"
+    )
+
+
 def test_make_teach_says_a_participant_set_in_the_shell_is_not_read(tmp_path):
     # make's own PARTICIPANT (empty) wins over the shell's; the command says so instead of only "missing",
     # and prints the shell's value as it is: neither make nor the shell runs it.
@@ -826,11 +867,23 @@ def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(c
     with pytest.raises(SystemExit) as stopped:
         participant_main(["P4", "--port", "99999"])
     assert stopped.value.code == 2
-    assert capsys.readouterr().err == "make teach: port must be a number from 1 to 65535, got 99999\n"
+    said = capsys.readouterr().err
+    assert said == "make teach: PORT (--port) must be a number from 1 to 65535, got 99999\n"
     with pytest.raises(SystemExit) as stopped:
         participant_main(["P4", "--port", "abc"])
     assert stopped.value.code == 2
-    assert capsys.readouterr().err == "make teach: argument --port: invalid int value: 'abc'\n"
+    assert capsys.readouterr().err == "make teach: PORT (--port): invalid int value: 'abc'\n"
+    # A refusal names the setting as make teach's command line gives it, beside the option or field.
+    for argv, said in [
+        (["--queries", "-1"], "QUERIES (preference_queries) must be an integer >= 1, got -1"),
+        (
+            ["--domain", "wipng"],
+            "DOMAIN (--domain): invalid choice: 'wipng' (choose from 'wiping', 'pushing')",
+        ),
+    ]:
+        with pytest.raises(SystemExit):
+            participant_main(["P4", *argv])
+        assert capsys.readouterr().err == f"make teach: {said}\n"
 
 
 def test_make_teach_refuses_a_machine_that_cannot_render_the_clips(results, monkeypatch, capsys):

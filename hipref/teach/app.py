@@ -61,7 +61,7 @@ KEYS_HINT = (
 QUESTIONS: dict[str, str] = {
     "wiping": "wiping the desk? <i>The gauge at each clip's right is the sponge's contact force; green: the "
     "safe band (a red bar presses too hard, an empty one does not touch).</i>",
-    "pushing": "pushing the cube to its goal? <i>The strip under each clip is the cube's way: the orange "
+    "pushing": "pushing the cube to its goal? <i>The strip under each clip is the cube's way: the blue "
     "square is the cube, the green mark its goal.</i>",
 }
 """Per domain: the task a preference query asks about, and how to read the clips' marks

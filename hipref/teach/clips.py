@@ -29,8 +29,8 @@ GAUGE_TOP = 2.0
 """The force gauge's scale ends at this multiple of the safe band's top (a force beyond it fills it)."""
 SAFE, HARD, OFF = (44, 160, 44), (214, 39, 40), (127, 127, 127)
 """Colours of a force inside the safe band, above it, below it (not touching)."""
-GOAL, CUBE = (44, 160, 44), (255, 127, 14)
-"""Colours of the pushing strip's goal mark and cube."""
+GOAL, CUBE = (44, 160, 44), (51, 102, 230)
+"""Colours of the pushing strip's goal mark and cube (the cube's colour in the scene, `hipref.sim.scene`)."""
 
 
 FONT = ImageFont.load_default(size=14)
@@ -70,7 +70,7 @@ def force_gauge(frame: np.ndarray, force: float, band: tuple[float, float]) -> n
         (SAFE, "safe") if low <= force <= high else (HARD, "too hard") if force > high else (OFF, "off")
     )
     draw.rectangle((left + 4, level(force), right - 4, bottom), fill=colour)
-    mark = f"{high:g}"  # the safe band's top, left of the gauge
+    mark = f"{high:g} N"  # the safe band's top, left of the gauge
     draw.line((left - 4, level(high), left, level(high)), fill=(255, 255, 255), width=1)
     label(draw, (left - 8 - draw.textlength(mark, font=FONT), level(high) - 8), mark, (0, 0, 0))
     caption(draw, f"contact force {max(force, 0.0):.0f} N: {words}", colour)

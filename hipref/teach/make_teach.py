@@ -50,7 +50,7 @@ the learner's first estimate, so that the session has something to teach."""
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # a malformed value: one line, as every refusal
-        refuse(message)
+        refuse(named(message))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--port", type=int, default=8866)
     args = parser.parse_args(argv)
     if not 1 <= args.port <= 65535:
-        refuse(f"port must be a number from 1 to 65535, got {args.port}")
+        refuse(f"PORT (--port) must be a number from 1 to 65535, got {args.port}")
     candidates = domain_spec(args.domain).candidates
     default = round(candidates.low + TRUTH_SHARE * (candidates.high - candidates.low), 6)
     truth = default if args.true_parameter is None else args.true_parameter
@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> None:
     try:  # bad values are refused here
         config = TeachConfig(**{**parameters, "conditions": tuple(args.conditions)})
     except ValueError as error:
-        refuse(str(error))
+        refuse(named(str(error)))
     if port_in_use(args.port):
         refuse(
             f"port {args.port} is in use, by another `make teach` or another server: stop it, or serve "
@@ -116,10 +116,11 @@ def main(argv: list[str] | None = None) -> None:
             root / "notebooks" / "09_teach.ipynb", parameters, Path(folder) / "teach.ipynb"
         )
         spec = domain_spec(args.domain)
+        catches = f"a catch trial every {args.catch_every}" if args.catch_every else "no catch trials"
         print(
             f"participant {args.participant}: {args.domain}, true {spec.parameter} {truth:g} {spec.unit}, "
             f"{args.queries} queries in each of {len(args.conditions)} part(s) "
-            f"({', '.join(args.conditions)}), a catch trial every {args.catch_every}: starting the server",
+            f"({', '.join(args.conditions)}), {catches}: starting the server",
             flush=True,
         )
         # `make teach` execs this process: killed (SIGTERM, SIGKILL), make takes it along, and it Voila.
@@ -194,6 +195,28 @@ MAKE_SETTINGS = {
     "conditions": "CONDITIONS",
 }
 """The session header's fields a researcher sets on `make teach`'s command line, by their names there."""
+
+OPTIONS = {
+    "--conditions": "CONDITIONS",
+    "--queries": "QUERIES",
+    "--catch-every": "CATCH_EVERY",
+    "--domain": "DOMAIN",
+    "--true-parameter": "TRUE_PARAMETER",
+    "--port": "PORT",
+}
+"""This command's options, by the `make teach` settings that give them."""
+
+
+def named(message: str) -> str:
+    """A refusal naming an option ('argument --queries: ...') or a session field ('preference_queries
+    must ...') with the `make teach` setting too: 'QUERIES (--queries): ...', 'QUERIES (preference_queries)
+    must ...'."""
+    for option, setting in OPTIONS.items():
+        message = message.replace(f"argument {option}:", f"{setting} ({option}):")
+    for field, setting in MAKE_SETTINGS.items():
+        if message.startswith(f"{field} "):
+            return f"{setting} ({field}){message[len(field) :]}"
+    return message
 
 
 def earlier_settings(error: ValueError, header: dict[str, Any]) -> list[str]:

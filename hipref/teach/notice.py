@@ -34,6 +34,10 @@ KERNEL_GONE = (
 NOTICE_CLASS = "hipref-connection-notice"
 """The notice's element (hidden until needed)."""
 
+FINISHED_CLASS = "hipref-finished"
+"""The class of a participant's closing screen: once it is on the page the script stops asking, as nothing is
+left to lose or to go on with (the experimenter stopping the server then is the session's normal end)."""
+
 _PAGE = """
 <div class="{notice}" role="alert" style="display: none; position: fixed; inset: 0; z-index: 10000;
   background: rgba(255, 255, 255, 0.9); align-items: center; justify-content: center;">
@@ -51,6 +55,7 @@ _PAGE = """
     notice.style.display = "flex";
   }}
   async function check() {{
+    if (document.getElementsByClassName({finished_json}).length) return;  // all answered: nothing to say
     let reply;
     try {{
       reply = await fetch(url, {{ cache: "no-store" }});
@@ -78,6 +83,7 @@ def connection_watch() -> HTML:
         _PAGE.format(
             notice=NOTICE_CLASS,
             notice_json=json.dumps(NOTICE_CLASS),
+            finished_json=json.dumps(FINISHED_CLASS),
             server_stopped=json.dumps(SERVER_STOPPED),
             kernel_gone=json.dumps(KERNEL_GONE),
             every_ms=round(POLL_SECONDS * 1000),

@@ -30,6 +30,7 @@ from hipref.experiments.domains import domain_spec
 from hipref.results import results_dir
 from hipref.teach.app import Panel, PreferenceApp
 from hipref.teach.config import TeachConfig
+from hipref.teach.notice import FINISHED_CLASS
 from hipref.teach.preferences import PreferenceTeaching
 from hipref.teach.server import CULL_EVERY, CULL_SECONDS
 from hipref.teach.session import SessionFile, SessionLocked, SessionUnwritable
@@ -55,6 +56,11 @@ FINISHED = (
     "window.</p>"
 )
 """The closing screen: after the last answer, and to a participant who comes back after it."""
+PREPARING = (
+    "Preparing the next pair of clips: a few seconds, up to half a minute the first time the robot is set up."
+)
+"""What a pressed button's line says while the next screen is prepared (measured: about 12 s for the practice
+pair on a server just started, 1-3 s after)."""
 OPEN_ELSEWHERE = (
     "This session is open in another window or tab ({queries} pairs in {parts} in all): close that one, then "
     "press the button."
@@ -124,6 +130,9 @@ class ParticipantApp:
         self.widget.add_class("hipref-participant")
         self.apps: list[PreferenceApp] = []
         """The conditions' widgets, in the order met."""
+        self.answered: dict[int, int] = {}
+        """Per condition (by index) finished in this window or an earlier visit, its answers: counted once
+        however often a refused button press met it again."""
         self.practice: PreferenceApp | None = None
         task, parameter, symptom = TASKS[config.domain]
         queries = sum(c.preference_queries for c in self.conditions)
@@ -153,7 +162,7 @@ class ParticipantApp:
             if go.disabled:
                 return
             go.disabled = True
-            status.value = "<p><i>Preparing the next pair of clips: this takes a few seconds.</i></p>"
+            status.value = f"<p><i>{PREPARING}</i></p>"
             try:
                 then()
             except (SessionLocked, SessionUnwritable) as error:
@@ -194,10 +203,10 @@ class ParticipantApp:
         spec = domain_spec(self.config.domain)
         wrong = {"wiping": ("too low", "too high"), "pushing": ("too light", "too heavy")}[self.config.domain]
         wrong_way = wrong[far > near]
-        verdict = "Right" if record["answer"] == good else "Not quite"
+        verdict = "Correct" if record["answer"] == good else "Not quite"
         # No value is named: a participant who knew the truth could answer by number, not by the motion.
         text = (
-            f"<h3>{verdict}: the {good} clip was the better one.</h3><p>It was run with the right "
+            f"<h3>{verdict}: the {good} clip was the better one.</h3><p>It was run with the true "
             f"{spec.parameter}; the other with a guess {wrong_way}. Look for this difference in the pairs to "
             "come.</p>"
         )
@@ -213,12 +222,14 @@ class ParticipantApp:
         self.apps.append(app)
         part = f"<h3>Part {index + 1} of {len(self.conditions)}</h3>"
         if app.teaching.done:  # answered in an earlier visit
+            self.answered[index] = app.teaching.answered
             app.teaching.close()
             app.teaching.session.close()
             self._start_condition(index + 1)
             return
 
         def finished() -> None:
+            self.answered[index] = app.teaching.answered
             app.teaching.close()
             app.teaching.session.close()  # its lock released: a later visit may open it
             if index + 1 < len(self.conditions):
@@ -231,11 +242,12 @@ class ParticipantApp:
         self.widget.children = [widgets.HTML(part), app.widget]
 
     def _close(self) -> None:
-        self._thank(sum(app.teaching.answered for app in self.apps))
+        self._thank(sum(self.answered.values()))
 
     def _thank(self, answered: int) -> None:
         text = FINISHED.format(answered=answered, participant=html.escape(self.config.participant))
         self.widget.children = [widgets.HTML(text)]
+        self.widget.add_class(FINISHED_CLASS)  # the page's connection notice stays away (`notice`)
 
 
 def _practised(path: Path, config: TeachConfig) -> bool:
@@ -276,7 +288,8 @@ def _why_not(error: SessionLocked | SessionUnwritable) -> str:
     if isinstance(error, SessionLocked):
         return (
             "Your answers so far are saved, but this part is still open in an earlier window (or a second "
-            f"tab). Close it and press the button again in {CULL_SECONDS + 2 * CULL_EVERY} seconds."
+            "tab). Close it and press the button again; if that window closed without saying so (a crash), "
+            f"the part is freed within {CULL_SECONDS + 2 * CULL_EVERY} seconds."
         )
     return f"Your answers cannot be saved: please tell the experimenter ({error})."
 

@@ -49,6 +49,7 @@ from hipref.teach.learner import (
     make_learner,
     running_estimate,
     session_streams,
+    warm,
 )
 from hipref.teach.session import SessionFile
 from hipref.teachers.preference import EQUAL, PreferenceQuery
@@ -315,6 +316,7 @@ class PreferenceTeaching:
             for answer in ANSWERS:
                 branch = copy.deepcopy(self._asker)
                 self._next[answer] = self._executor.submit(self._branch, branch, self.current, answer, given)
+        self._executor.submit(warm, self._asker.learner)  # the tables of every answer, once per process
         if self.render:
             self._ahead = self._executor.submit(self._render_ahead, nearest_first, self._ahead_token)
 
