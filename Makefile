@@ -123,7 +123,7 @@ lab: install
 # kill of make stops the server too.
 SHELL_PARTICIPANT := $(if $(filter environment,$(origin PARTICIPANT)),$(value PARTICIPANT))
 # A setting make teach does not know (a typo, QUERY=4) is refused rather than silently ignored.
-TEACH_SETTINGS := PARTICIPANT CONDITIONS CATCH_EVERY PORT DOMAIN QUERIES TRUE_PARAMETER PYTHON
+TEACH_SETTINGS := PARTICIPANT CONDITIONS CATCH_EVERY PORT DOMAIN QUERIES TRUE_PARAMETER PYTHON MUJOCO_GL
 TEACH_UNKNOWN = $(filter-out $(TEACH_SETTINGS),$(foreach v,$(.VARIABLES),$(if $(filter command line,$(origin $(v))),$(v))))
 PARTICIPANT =
 CONDITIONS = uniform information_gain

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import itertools
 import json
@@ -577,7 +578,11 @@ def test_a_participant_is_led_through_practice_conditions_and_a_closing_screen(r
     )
     app = ParticipantApp(config, render=False)
     text = app.widget.children[0].value
-    assert "height of the desk" in text and "4 pairs in 2 parts." in text
+    assert "height of the desk" in text and "4 pairs in 2 parts. Some pairs are easy on purpose." in text
+    # No catch trial among the queries (none asked for, or fewer queries than catch_every): none promised.
+    for fewer in ({"catch_every": 0}, {"catch_every": 3}):
+        plain = ParticipantApp(dataclasses.replace(config, participant="P1b", **fewer), render=False)
+        assert "easy on purpose" not in plain.widget.children[0].value
     app.widget.children[1].click()  # start the practice
     shown = app.practice.teaching.current
     assert shown.catch and shown.query.candidates == (0.8, 0.5)
@@ -821,7 +826,7 @@ def test_make_teach_refuses_a_setting_it_does_not_know():
     assert (done.returncode, done.stdout) == (2, "")
     assert done.stderr.splitlines()[0] == (
         "make teach: unknown setting(s) DOMIAN QUERY; make teach takes PARTICIPANT CONDITIONS CATCH_EVERY "
-        "PORT DOMAIN QUERIES TRUE_PARAMETER PYTHON"
+        "PORT DOMAIN QUERIES TRUE_PARAMETER PYTHON MUJOCO_GL"
     )
 
 
@@ -853,7 +858,7 @@ def test_make_teach_refuses_a_bad_id_a_port_in_use_or_out_of_range_in_one_line(c
         participant_main(["x/y"])
     assert stopped.value.code == 2
     said = capsys.readouterr().err
-    assert said.startswith("make teach: participant must be 1-40 letters, digits, - or _")
+    assert said.startswith("make teach: PARTICIPANT (participant) must be 1-40 letters, digits, - or _")
     assert said.count("\n") == 1
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))

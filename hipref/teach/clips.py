@@ -27,16 +27,18 @@ GAP = 8
 """Pixels of white between the two clips."""
 GAUGE_TOP = 2.0
 """The force gauge's scale ends at this multiple of the safe band's top (a force beyond it fills it)."""
+Colour = tuple[int, int, int]
+"""An RGB colour, 0-255."""
 SAFE, HARD, OFF = (44, 160, 44), (214, 39, 40), (127, 127, 127)
 """Colours of a force inside the safe band, above it, below it (not touching)."""
+WORDING: dict[Colour, Colour] = {SAFE: (0, 110, 0), HARD: (190, 20, 20), OFF: (80, 80, 80)}
+"""The caption's lettering for each: darker, at least 4.5:1 against its white (the bars' colours are not)."""
 GOAL, CUBE = (44, 160, 44), (51, 102, 230)
 """Colours of the pushing strip's goal mark and cube (the cube's colour in the scene, `hipref.sim.scene`)."""
 
 
 FONT = ImageFont.load_default(size=14)
 """The marks' lettering: Pillow's own scalable font, at a size readable on a 320-pixel-wide clip."""
-Colour = tuple[int, int, int]
-"""An RGB colour, 0-255."""
 
 
 def label(draw: ImageDraw.ImageDraw, at: tuple[float, float], text: str, colour: Colour) -> None:
@@ -73,7 +75,7 @@ def force_gauge(frame: np.ndarray, force: float, band: tuple[float, float]) -> n
     mark = f"{high:g} N"  # the safe band's top, left of the gauge
     draw.line((left - 4, level(high), left, level(high)), fill=(255, 255, 255), width=1)
     label(draw, (left - 8 - draw.textlength(mark, font=FONT), level(high) - 8), mark, (0, 0, 0))
-    caption(draw, f"contact force {max(force, 0.0):.0f} N: {words}", colour)
+    caption(draw, f"contact force {max(force, 0.0):.0f} N: {words}", WORDING[colour])
     return np.asarray(image)
 
 

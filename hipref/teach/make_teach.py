@@ -188,6 +188,7 @@ def check_sessions(config: TeachConfig) -> None:
 
 
 MAKE_SETTINGS = {
+    "participant": "PARTICIPANT",
     "domain": "DOMAIN",
     "true_parameter": "TRUE_PARAMETER",
     "preference_queries": "QUERIES",

@@ -46,7 +46,7 @@ motion. {symptom}</p>
 <p>You will see two clips side by side, looping: the same robot, run with two different guesses.
 Choose the clip where the robot does the task <b>better</b>: <b>◀ left</b>, <b>right ▶</b>, or
 <b>can't tell ▼</b> if you cannot see a difference. Keys ← → ↓ work while the pointer is over the clips.</p>
-<p>{plan} Some pairs are easy on purpose.
+<p>{plan}{easy}
 Your answers are saved as you give them; you may close the window and come back.</p>
 """
 FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts}."
@@ -147,7 +147,13 @@ class ParticipantApp:
             back, plan = True, OPEN_ELSEWHERE
         parts = "one part" if len(self.conditions) == 1 else f"{len(self.conditions)} parts"
         plan = plan.format(queries=queries, parts=parts)
-        text = INSTRUCTIONS.format(task=task, parameter=parameter, symptom=symptom, plan=plan)
+        every = config.catch_every
+        easy = (
+            " Some pairs are easy on purpose."
+            if every and any(c.preference_queries >= every for c in self.conditions)
+            else ""
+        )
+        text = INSTRUCTIONS.format(task=task, parameter=parameter, symptom=symptom, plan=plan, easy=easy)
         self._screen(text, "Continue" if back else "Start the practice pair", self._start_practice)
 
     def _screen(self, text: str, button: str, then: Callable[[], None]) -> None:

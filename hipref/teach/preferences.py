@@ -28,6 +28,7 @@ those of the session without catch trials.
 from __future__ import annotations
 
 import copy
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor, wait
@@ -161,6 +162,8 @@ class PreferenceTeaching:
             np.random.default_rng(streams.sides),
             np.random.default_rng(streams.slices),
         )
+        # Beside the thread preparing queries, so that a quick first answer does not wait for it either.
+        threading.Thread(target=warm, args=(self._asker.learner,), name="hipref-warm", daemon=True).start()
         self.evaluation = evaluation_slices(config, self._task)
         display = self._task.sample_layout(np.random.default_rng(streams.display))
         self.candidate_clips = CandidateClips(
@@ -316,7 +319,6 @@ class PreferenceTeaching:
             for answer in ANSWERS:
                 branch = copy.deepcopy(self._asker)
                 self._next[answer] = self._executor.submit(self._branch, branch, self.current, answer, given)
-        self._executor.submit(warm, self._asker.learner)  # the tables of every answer, once per process
         if self.render:
             self._ahead = self._executor.submit(self._render_ahead, nearest_first, self._ahead_token)
 
