@@ -49,7 +49,7 @@ Choose the clip where the robot does the task <b>better</b>: <b>◀ left</b>, <b
 <p>{plan}{easy}
 Your answers are saved as you give them; you may close the window and come back.</p>
 """
-FIRST_VISIT = "First one practice pair, and its right answer; then {queries} pairs in {parts}."
+FIRST_VISIT = "First one practice pair, and its correct answer; then {queries} pairs in {parts}."
 COMING_BACK = "Welcome back: you go on where you stopped ({queries} pairs in {parts} in all)."
 FINISHED = (
     "<h2>Thank you!</h2><p>All {answered} answers are saved (participant {participant}). You may close this "
