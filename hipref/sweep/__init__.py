@@ -11,6 +11,7 @@ byte-identical whichever backend and however many workers.
   `cached_prefix`), their copies in memory and the directory the running sweep caches in.
 - `entries`: an entry on disk (`write_entry`, `read_entry`), carrying its key and a checksum that must
   match before it is used, and the check that a cache directory can be written.
+- `progress`: a sweep's progress, a tqdm bar on a terminal or one line updated in place in a notebook.
 
 Only the standard library (and tqdm) is imported at load time: a spawned worker imports this package
 before numpy or torch are loaded, so their one-thread settings take effect.

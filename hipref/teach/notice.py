@@ -3,7 +3,9 @@
 A page served by Voila keeps showing its buttons after either; clicks then reach nothing and the page says
 nothing. `connection_watch` is a cell output whose script asks the server for the page's kernel every
 POLL_SECONDS and, when the server does not answer or no longer knows the kernel, covers the page with a
-notice: every answer given is saved (each is written before the learner is told), and how to go on.
+notice: every answer given is saved (each is written before the learner is told), and how to go on. Once the
+participant's closing screen is on the page (`FINISHED_CLASS`) it stops asking: nothing is left to lose, and
+the experimenter stopping the server then is the session's normal end.
 
 A killed kernel is not restarted in place (`hipref.teach.server.voila_command`): a restarted kernel has
 none of the page's widgets, so the page would stay dead while the server reports the kernel alive. Removed,
