@@ -20,7 +20,10 @@ import numpy as np
 import pytest
 import torch
 
-from hipref.learners.bayes import BayesLearner
+from hipref.experiments.domains import domain_spec
+from hipref.learners import queries
+from hipref.learners.answer_models import person_family
+from hipref.learners.bayes import BayesConfig, BayesLearner
 from hipref.learners.sysid import DESK_HEIGHT
 from hipref.notebook import config_from_parameters
 from hipref.teach import make_teach, open_session, participant
@@ -36,6 +39,7 @@ from hipref.teach.app import (
 from hipref.teach.config import TeachConfig
 from hipref.teach.dataset import read_sessions
 from hipref.teach.feedback import FeedbackTeaching
+from hipref.teach.learner import warm
 from hipref.teach.make_teach import main as participant_main
 from hipref.teach.participant import ParticipantApp, practice_config
 from hipref.teach.preferences import PreferenceTeaching, catch_pair
@@ -1062,6 +1066,17 @@ def test_notebook_09_run_with_a_participant_shows_the_screens_then_stops_saying_
     assert "[the participant's screens: interactive" in shown  # the screens' widget, shown as plain text
     assert "Stopped here:" in shown and "make teach PARTICIPANT=P1" in shown
     assert "Traceback" not in shown and "NameError" not in shown
+
+
+def test_warming_builds_every_table_the_first_answer_reads():
+    # The tables `warm` builds while the person watches are those telling an answer reads: none is built then.
+    learner = BayesLearner(domain_spec("wiping").candidates, BayesConfig(answer_models=person_family()), 3)
+    queries._table.cache_clear()
+    warm(learner)
+    built = queries._table.cache_info().misses
+    assert built == len(person_family())
+    learner.tell(learner.ask(), 1)
+    assert queries._table.cache_info().misses == built
 
 
 def test_every_query_is_shown_from_one_layout_and_each_candidate_rendered_once(results, monkeypatch):
