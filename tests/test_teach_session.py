@@ -1074,7 +1074,8 @@ def test_warming_builds_every_table_the_first_answer_reads():
     queries._table.cache_clear()
     warm(learner)
     built = queries._table.cache_info().misses
-    assert built == len(person_family())
+    # A myopic model with memory reads its twin's table without memory (one answer's law is the same).
+    assert built == len({dataclasses.replace(m, memory=0.0) for m in person_family()}) < len(person_family())
     learner.tell(learner.ask(), 1)
     assert queries._table.cache_info().misses == built
 

@@ -12,8 +12,9 @@ preferred (i < N), 'skip' (column N) or 'equally good' (column N + 1). They mirr
 - 'skip': 'skip' when min_i d_i > skip_distance, else the nearest;
 - 'equal': 'equally good' when d_(2) - d_(1) < equal_margin, else the nearest;
 - 'myopic': the nearest to a picture m of the truth, m ~ phi + N(0, (spread R)^2), so P(i) is the mass of
-  candidate i's Voronoi interval (the myopic teacher's marginal law; its errors' correlation over consecutive
-  answers is not modelled);
+  candidate i's Voronoi interval: the law of one answer alone; with `memory`, the picture's errors follow each
+  other as the myopic teacher's do, and the learner reads each answer given the ones before it
+  (`hipref.learners.pictures`);
 - 'distance': the nearest, wrong with probability confusion_max exp(-|d_a - d_b| / confusion_width) (pairs).
 
 Every model but 'flip' takes the uniform flip e on top of its rule, as the scripted teacher applies it last;
@@ -63,6 +64,9 @@ class AnswerModel:
     """'equal': 'equally good' when the two nearest candidates' distances differ by less than this."""
     spread: Annotated[float, Range(1e-9, math.inf)] = 0.3
     """'myopic': the standard deviation of the teacher's picture of the truth, a fraction of the range."""
+    memory: Annotated[float, Range(0.0, 1.0 - 1e-9)] = 0.0
+    """'myopic': the correlation of the picture's error between consecutive answers (the myopic teacher's
+    memory); 0, a fresh picture for every answer."""
     confusion_max: Annotated[float, Range(0.0, 1.0)] = 0.5
     """'distance': the probability of a wrong answer for a pair equally near the truth."""
     confusion_width: Annotated[float, Range(1e-9, math.inf)] = 0.21
@@ -72,6 +76,8 @@ class AnswerModel:
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.memory > 0 and self.kind != "myopic":
+            raise ValueError(f"memory is for kind 'myopic' only, got memory={self.memory} for {self.kind!r}")
 
     def probabilities(self, offsets: np.ndarray) -> np.ndarray:
         """P(answer | phi) for offsets (..., N) = (phi_i - phi) / R: shape (..., N + 2), the N candidates,
@@ -83,6 +89,12 @@ class AnswerModel:
         out = np.zeros((*offsets.shape[:-1], n + 2))
         distances = np.abs(offsets)
         out[..., :n] = _RULES[self.kind](self, offsets, distances, out)
+        return self.after_rule(out)
+
+    def after_rule(self, out: np.ndarray) -> np.ndarray:
+        """The rule's probabilities `out` (..., N + 2) with the lapse and then the flip applied (in place
+        where there is a lapse)."""
+        n = out.shape[-1] - 2
         if self.lapse > 0:
             out *= 1.0 - self.lapse
             out[..., :n] += self.lapse / (n + 1)
@@ -92,9 +104,9 @@ class AnswerModel:
 
 @functools.lru_cache(maxsize=256)
 def rule_of(model: AnswerModel) -> AnswerModel:
-    """`model` without its flip: the rule it applies before flipping (kept per model, as query rules and
-    posteriors ask for it at every answer)."""
-    return replace(model, flip=0.0)
+    """`model` without its flip: the rule it applies before flipping to one answer alone (without the myopic
+    memory; kept per model, as query rules and posteriors ask for it at every answer)."""
+    return replace(model, flip=0.0, memory=0.0)
 
 
 def with_flip(probabilities: np.ndarray, flip: float) -> np.ndarray:
@@ -198,7 +210,7 @@ def person_family() -> tuple[AnswerModel, ...]:
 def told(teacher: TeacherModel, noise: float) -> AnswerModel:
     """The answer model of a scripted teacher (`hipref.teachers.models`) flipping at `noise`: what a learner
     'told the true model' uses. The myopic teacher's picture has the stationary spread of its memory,
-    glimpse_noise sqrt((1 - memory) / (1 + memory))."""
+    glimpse_noise sqrt((1 - memory) / (1 + memory)), and that memory."""
     check_range("noise", noise, 0.0, 1.0 - 1e-9)
     base = AnswerModel(flip=noise)
     if teacher.kind in ("oracle", "mistake"):
@@ -211,7 +223,7 @@ def told(teacher: TeacherModel, noise: float) -> AnswerModel:
         return replace(base, kind="equal", equal_margin=teacher.equal_margin)
     if teacher.kind == "myopic":
         spread = teacher.glimpse_noise * math.sqrt((1.0 - teacher.memory) / (1.0 + teacher.memory))
-        return replace(base, kind="myopic", spread=max(spread, 1e-9))
+        return replace(base, kind="myopic", spread=max(spread, 1e-9), memory=teacher.memory)
     return replace(
         base, kind="distance", confusion_max=teacher.confusion_max, confusion_width=teacher.confusion_width
     )
@@ -242,21 +254,23 @@ def model_family() -> tuple[AnswerModel, ...]:
     """The hypotheses of a learner that is not told the teacher's model: every kind over a grid of its
     parameters, each weighed by its marginal likelihood (`hipref.learners.bayes.PreferencePosterior`).
 
-    The grids are coarse, to keep a choice of query cheap (30 models). They hold the skip and equal teachers'
+    The grids are coarse, to keep a choice of query cheap (32 models). They hold the skip and equal teachers'
     defaults (0.3 and 0.05) and the flip rates 0 and 0.2 of notebook 12's claims, so that under those teachers
     the learner told nothing weighs the true model among others, and the myopic teacher's picture spread
-    nearly (0.3 against 0.298), but not the stochastic teacher's beta 7 nor the distance teacher's width 0.21:
-    flip rates of FLIP_GRID; rationalities beta 2, 8, 32; a picture's spread 0.1 and 0.3 of the range;
-    confusion of 1/2 over widths 0.1-0.4; skip distances and equal margins on small grids, each with 0 or 20 %
-    flips on top. A finer grid of rationalities does not bring the learner told nothing nearer the learner
-    told the stochastic teacher's model (beta 7): with nine from 2 to 32 a factor sqrt(2) apart it needed 130
-    answers in wiping and 130 in pushing to be within one step in 90 % of `python -m hipref.bench.model_choice
-    --grid wide --episodes 200`'s environments, against 65 and 140 with these three and 60 and 120 told the
-    model: twice the answers in wiping, about the same in pushing."""
+    nearly (0.3 against 0.298) with its memory (0.9), but not the stochastic teacher's beta 7 nor the distance
+    teacher's width 0.21: flip rates of FLIP_GRID; rationalities beta 2, 8, 32; a picture's spread 0.1 and 0.3
+    of the range, each a fresh picture per answer or with the myopic teacher's memory; confusion of 1/2 over
+    widths 0.1-0.4; skip distances and equal margins on small grids, each with 0 or 20 % flips on top. A finer
+    grid of rationalities does not bring the learner told nothing nearer the learner told the stochastic
+    teacher's model (beta 7): with nine from 2 to 32 a factor sqrt(2) apart it needed 130 answers in wiping
+    and 130 in pushing to be within one step in 90 % of `python -m hipref.bench.model_choice --grid wide
+    --episodes 200`'s environments, against 65 and 140 with these three and 60 and 120 told the model: twice
+    the answers in wiping, about the same in pushing."""
     base = AnswerModel()
     models = [replace(base, kind="flip", flip=e) for e in FLIP_GRID]
     models += [replace(base, kind="stochastic", beta=b) for b in (2.0, 8.0, 32.0)]
-    models += [replace(base, kind="myopic", spread=s) for s in (0.1, 0.3)]
+    memories = (0.0, TeacherModel("myopic").memory)
+    models += [replace(base, kind="myopic", spread=s, memory=g) for s in (0.1, 0.3) for g in memories]
     models += [replace(base, kind="distance", confusion_width=w) for w in (0.1, 0.2, 0.4)]
     flips = (0.0, 0.2)
     models += [replace(base, kind="skip", skip_distance=s, flip=e) for s in (0.2, 0.3, 0.4) for e in flips]

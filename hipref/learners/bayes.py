@@ -4,21 +4,21 @@ PESI moves SI's distribution a little per answer (Eq. 2). What the answers allow
 
     Pr(phi, m | answers) ∝ Pr(phi) Pr(m) prod_t P(answer_t | query_t, phi, m),
 
-over the truth phi and the teacher's answer model m (`hipref.learners.answer_models`): told the model, m is
-fixed; otherwise every model of `model_family()` is weighed by its marginal likelihood. Queries are
-scored on the heaviest models of the posterior (`PreferencePosterior.query_beliefs`), and the estimate is
-read from the whole posterior (Bayesian model averaging) by `hipref.learners.estimates`.
+over the truth phi and the teacher's answer model m (`hipref.learners.answer_models`; a myopic model with
+memory reads answer_t given the ones before, `hipref.learners.pictures`): told the model, m is fixed;
+otherwise every model of `model_family()` is weighed by its marginal likelihood. Queries are scored on the
+heaviest models of the posterior (`PreferencePosterior.query_beliefs`), and the estimate is read from the
+whole posterior (Bayesian model averaging) by `hipref.learners.estimates`.
 
-phi lives on a fine grid of points over
-the range, `refine` per step of Phi, every midpoint of two candidates among them: with the flip model the
-posterior is then exact on the intervals between pair midpoints and on the midpoints themselves (where a
-teacher breaks ties at random, as for a truth on the grid of Phi).
+phi lives on a fine grid of points over the range, `refine` per step of Phi, every midpoint of two
+candidates among them: with the flip model the posterior is then exact on the intervals between pair
+midpoints and on the midpoints themselves (where a teacher breaks ties at random, as for a truth on the grid
+of Phi).
 
 The prior is uniform, or ('si') SI's Pr(phi | tau) on the slice the estimate is for: the answers' posterior
-times SI's output on each evaluation slice, so what OSI knows is kept.
-
-The learner asks with a query rule (`hipref.learners.queries`); under 'uniform' it draws exactly what
-PESILearner draws from the same seed, so the two are paired on the same queries and answers.
+times SI's output on each evaluation slice, so what OSI knows is kept. The learner asks with a query rule
+(`hipref.learners.queries`); under 'uniform' it draws exactly what PESILearner draws from the same seed, so
+the two are paired on the same queries and answers.
 """
 
 from __future__ import annotations
@@ -39,7 +39,14 @@ from hipref.learners.answer_models import (
     rule_of,
     with_flip,
 )
-from hipref.learners.estimates import ESTIMATES, SuccessCurve, check_success_curve, read_estimate
+from hipref.learners.estimates import (
+    ESTIMATES,
+    SuccessCurve,
+    cell_stretches,
+    check_success_curve,
+    read_estimate,
+)
+from hipref.learners.pictures import PictureChain
 from hipref.learners.queries import QUERY_RULES, cells_key, choose_pair, pair_table
 from hipref.learners.sysid import CandidateSet, SIModel
 from hipref.teachers.preference import EQUAL, NoLabel, PreferenceQuery, preference_label_vector
@@ -74,13 +81,12 @@ class PreferencePosterior:
         truth on a midpoint makes the teacher break a tie at random, which only that point explains."""
         half = refine // 2
         self.query_points = np.linspace(candidates.low, candidates.high, (candidates.size - 1) * 4 + 1)
-        """What query rules score on: the half steps' ends (every pair midpoint) and centres. Every point
-        strictly inside a half step has the same flip-model likelihood for any pair, so its centre stands
-        for all of it."""
+        """What query rules score on: the half steps' ends (every pair midpoint) and centres. Any point inside
+        a half step has the same flip-model likelihood for any pair, so its centre stands for it."""
         self._cells_key = cells_key(self.cells)
         index = np.arange(self.cells.size)
         self._query_index = 2 * (index // half) + (index % half != 0)
-        self.stretches = _stretches(self.cells, half)
+        self.stretches = cell_stretches(self.cells, half)
         """Per cell, the stretch of Phi its weight stands for (`hipref.learners.estimates.Stretches`): a pair
         midpoint (or an end of the range) is a point; the cells between two midpoints share the open interval
         between them (with refine 2 there are none, and every cell is a point)."""
@@ -89,6 +95,8 @@ class PreferencePosterior:
         self.log_model_prior = np.array([-np.log(len(set(kinds))) - np.log(kinds.count(k)) for k in kinds])
         self.log_likelihood = np.zeros((len(models), self.cells.size))
         self.answers: list[tuple[np.ndarray, int]] = []
+        self.chains = {k: PictureChain(m, candidates, self.cells) for k, m in enumerate(models) if m.memory}
+        """Per myopic model with memory, its picture's chain: its answers are read given the ones before."""
 
     def _probabilities(self, candidates: np.ndarray, column: int) -> np.ndarray:
         if candidates.size == 2:
@@ -129,6 +137,9 @@ class PreferencePosterior:
         values = np.asarray(candidates, dtype=np.float64)
         with np.errstate(divide="ignore"):
             log_p = np.log(self._probabilities(values, column))
+        states = {}
+        for k, chain in self.chains.items():
+            log_p[k], states[k] = chain.step(values, column)
         total = self.log_likelihood + log_p
         if not np.isfinite(total.max()):
             raise ValueError(
@@ -136,6 +147,8 @@ class PreferencePosterior:
                 "answers before it (a teacher model that never errs, contradicted)"
             )
         self.log_likelihood = total
+        for k, state in states.items():
+            self.chains[k].state = state
         self.answers.append((values, column))
 
     def joint(self, log_prior: np.ndarray | None = None) -> np.ndarray:
@@ -193,18 +206,6 @@ class PreferencePosterior:
             (self.models[i], np.bincount(self._query_index, weights=joint[i], minlength=size) / total)
             for i in keep
         ]
-
-
-def _stretches(cells: np.ndarray, half: int) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) per cell: every `half`-th cell (a pair midpoint or an end of the range) a point, the
-    `half` - 1 cells between two of them tiling the interval between them, the first and last reaching its
-    ends. Each end is a neighbouring cell or the midpoint of two, so consecutive stretches meet exactly."""
-    inside = np.arange(cells.size) % half
-    before = np.concatenate([cells[:1], cells[:-1]])
-    after = np.concatenate([cells[1:], cells[-1:]])
-    low = np.where(inside == 1, before, (before + cells) / 2)
-    high = np.where(inside == half - 1, after, (cells + after) / 2)
-    return np.where(inside == 0, cells, low), np.where(inside == 0, cells, high)
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,18 @@ Stretches = tuple[np.ndarray, np.ndarray]
 with low == high is a point (`hipref.learners.bayes.PreferencePosterior.stretches`)."""
 
 
+def cell_stretches(cells: np.ndarray, half: int) -> Stretches:
+    """(low, high) per cell: every `half`-th cell (a pair midpoint or an end of the range) a point, the
+    `half` - 1 cells between two of them tiling the interval between them, the first and last reaching its
+    ends. Each end is a neighbouring cell or the midpoint of two, so consecutive stretches meet exactly."""
+    inside = np.arange(cells.size) % half
+    before = np.concatenate([cells[:1], cells[:-1]])
+    after = np.concatenate([cells[1:], cells[-1:]])
+    low = np.where(inside == 1, before, (before + cells) / 2)
+    high = np.where(inside == half - 1, after, (cells + after) / 2)
+    return np.where(inside == 0, cells, low), np.where(inside == 0, cells, high)
+
+
 def check_success_curve(success: SuccessCurve) -> None:
     """Refuse a success curve whose errors are not strictly increasing, whose arrays differ in length, or
     whose rates lie outside [0, 1]."""

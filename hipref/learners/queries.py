@@ -93,6 +93,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from scipy.special import entr
@@ -161,8 +162,10 @@ def _table(candidates: CandidateSet, cells: bytes, model: AnswerModel) -> PairTa
 
 def pair_table(candidates: CandidateSet, cells: np.ndarray | bytes, model: AnswerModel) -> PairTable:
     """The table of (candidates, cells, model), built on first use and kept for the process; `cells` may be
-    given as their float64 bytes (`cells_key`), which a caller asking often keeps."""
-    return _table(candidates, cells if isinstance(cells, bytes) else cells_key(cells), model)
+    given as their float64 bytes (`cells_key`), which a caller asking often keeps. A myopic model's memory
+    leaves one answer's law as it is: its table is the one without memory."""
+    single = replace(model, memory=0.0) if model.memory else model
+    return _table(candidates, cells if isinstance(cells, bytes) else cells_key(cells), single)
 
 
 def cells_key(cells: np.ndarray) -> bytes:
