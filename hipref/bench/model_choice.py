@@ -16,7 +16,7 @@ step in 90 % of environments) and the mean wall time of one run of
 each. Nothing is written to disk.
 
 `--family teachers` gives the learner told nothing only the answer models of the benchmark's own seven
-teachers (`teacher_family`) instead of `model_family()`'s 30: every teacher it meets and no other, so what it
+teachers (`teacher_family`) instead of `model_family()`'s 32: every teacher it meets and no other, so what it
 still needs beyond told the model is not the cost of models no teacher follows (the learner told the kind,
 the same under either family, is then not run).
 

@@ -14,9 +14,11 @@ errors for every cell of the posterior, the forward algorithm of a hidden Markov
 that each answer's likelihood is P(answer_t | phi, answers before t). With memory 0 it is the answer's
 marginal law (up to the grid's resolution).
 
-Each picture error stands for its bin, the picture uniform within it: the answer is the candidate nearest the
-picture, with the share of the bin in each candidate's interval, then the model's lapse and flip as for one
-answer alone.
+The chain's transition and starting law weigh the grid's points (bin centres); an answer's likelihood spreads
+the picture uniformly over the point's bin: the answer is the candidate nearest the picture, with the share
+of the bin in each candidate's interval, then the model's lapse and flip as for one answer alone. The grid
+ends at SPAN spreads: an answer only a picture beyond it would give has probability 0, where the law of one
+answer alone gives it at most the normal tail beyond SPAN spreads, 3e-5.
 """
 
 from __future__ import annotations

@@ -163,7 +163,8 @@ def _table(candidates: CandidateSet, cells: bytes, model: AnswerModel) -> PairTa
 def pair_table(candidates: CandidateSet, cells: np.ndarray | bytes, model: AnswerModel) -> PairTable:
     """The table of (candidates, cells, model), built on first use and kept for the process; `cells` may be
     given as their float64 bytes (`cells_key`), which a caller asking often keeps. A myopic model's memory
-    leaves one answer's law as it is: its table is the one without memory."""
+    leaves the law of one answer alone as it is: its table is the one without memory, so queries are scored
+    with that law, not with the chain's prediction given the answers so far (`hipref.learners.pictures`)."""
     single = replace(model, memory=0.0) if model.memory else model
     return _table(candidates, cells if isinstance(cells, bytes) else cells_key(cells), single)
 
