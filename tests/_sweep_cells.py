@@ -5,7 +5,8 @@ process, so a test can count exactly which cells ran, and where.
 
 Run as `python -m tests._sweep_cells CACHE_DIR LOG_DIR` it performs the slow sweep that the resume test
 kills half-way; as `python -m tests._sweep_cells --stuck LOG_DIR` it runs, on two workers, cells that
-would take ten minutes, for the tests that interrupt or kill a sweep.
+would take ten minutes, for the tests that interrupt or kill a sweep; as `python -m tests._sweep_cells
+--threads` it prints the BLAS threads of two cells run on two workers.
 """
 
 from __future__ import annotations
@@ -97,14 +98,18 @@ class ThreadsCell:
 
 
 def threads_cell(cell: ThreadsCell) -> pd.DataFrame:
-    """Rows holding torch's thread count and OMP_NUM_THREADS as seen inside the cell."""
+    """Rows holding torch's thread count, OMP_NUM_THREADS and the most threads of any BLAS loaded (numpy's
+    among them) as seen inside the cell."""
     import torch
+    from threadpoolctl import threadpool_info
 
+    blas = [library["num_threads"] for library in threadpool_info() if library["user_api"] == "blas"]
     return pd.DataFrame(
         {
             "seed": [cell.seed],
             "torch_threads": [torch.get_num_threads()],
             "omp": [os.environ.get("OMP_NUM_THREADS", "")],
+            "blas_threads": [max(blas)],
         }
     )
 
@@ -126,6 +131,10 @@ def stuck_cells(log_dir: str) -> list[ToyCell]:
 if __name__ == "__main__":
     if sys.argv[1] == "--stuck":
         run_sweep(toy_cell, stuck_cells(sys.argv[2]), cache_dir=False, workers=STUCK_WORKERS, desc="stuck")
+    elif sys.argv[1] == "--threads":
+        # This module imports numpy: a spawned worker imports it too, before its initializer runs.
+        rows = run_sweep(threads_cell, [ThreadsCell(seed) for seed in range(2)], cache_dir=False, workers=2)
+        print(" ".join(str(threads) for threads in rows["blas_threads"]))
     else:
         cache_dir, log_dir = sys.argv[1:3]
         run_sweep(toy_cell, resume_cells(log_dir), cache_dir=cache_dir, workers=1, desc="resume")

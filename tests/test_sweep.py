@@ -126,6 +126,7 @@ def test_cells_run_single_threaded_in_workers_and_in_process() -> None:
     in_workers = run_sweep(threads_cell, cells, cache_dir=False, workers=2)
     assert list(in_workers["torch_threads"]) == [1, 1]
     assert list(in_workers["omp"]) == ["1", "1"]
+    assert list(in_workers["blas_threads"]) == [1, 1]
 
     before = torch.get_num_threads()
     torch.set_num_threads(2)
@@ -135,6 +136,24 @@ def test_cells_run_single_threaded_in_workers_and_in_process() -> None:
         assert torch.get_num_threads() == 2, "the caller's thread setting is restored"
     finally:
         torch.set_num_threads(before)
+
+
+@pytest.mark.slow
+def test_workers_run_blas_on_one_thread_where_the_main_module_loaded_it() -> None:
+    """A spawned worker imports its parent's main module before its initializer sets the thread count
+    (`python -m hipref.bench.held_out_steps` imports numpy): the BLAS already loaded is limited too. The
+    sweep's process asks for two BLAS threads, which a worker would otherwise keep."""
+    env = {**os.environ, "OMP_NUM_THREADS": "2", "OPENBLAS_NUM_THREADS": "2", "MKL_NUM_THREADS": "2"}
+    result = subprocess.run(
+        [sys.executable, "-m", "tests._sweep_cells", "--threads"],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    assert result.stdout.split() == ["1", "1"]
 
 
 @pytest.mark.parametrize("workers", [1, 2])
