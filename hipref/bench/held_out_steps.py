@@ -12,6 +12,10 @@ held-out runs). It prints `answers_to_step` (the answers after which the learner
 notebook 12's held-out claims (at most 10 answers with perfect answers, 30 at 20 % flips, told the kind; told
 nothing at most 1.25 times told the model) read on many more environments than its 30 per domain. The runs
 share the local cores (`hipref.sweep.run_sweep`, nothing cached); nothing is written to disk.
+
+`--family without_memory` gives the learner told nothing `model_family()` without its two myopic models with
+memory (the family before `hipref.learners.pictures`), to read what those models cost on the same
+environments.
 """
 
 from __future__ import annotations
@@ -20,11 +24,12 @@ import argparse
 import time
 
 import numpy as np
+import pandas as pd
 
 from hipref.experiments.answers_tables import answers_to_step, told_against_chosen
 from hipref.experiments.answers_to_success import STEP_BOUNDS, AnswersCell, run_answers
 from hipref.experiments.domains import DOMAINS
-from hipref.learners.answer_models import TOLD
+from hipref.learners.answer_models import TOLD, AnswerModel, model_family
 from hipref.sweep import NO_CACHE, run_sweep
 
 
@@ -49,6 +54,12 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=900, help="the environments' seed")
     parser.add_argument("--draw", type=int, default=0, help="the stream the truths are drawn from")
     parser.add_argument("--episodes", type=int, default=40, help="answers per run")
+    parser.add_argument(
+        "--family",
+        choices=("all", "without_memory"),
+        default="all",
+        help="the answer models told nothing weighs: model_family()'s, or those without the myopic memory",
+    )
     args = parser.parse_args()
     if args.truths < 2 or args.episodes < 1:
         parser.error(
@@ -62,12 +73,23 @@ def main() -> None:
         for truth in truths(domain, args.truths, args.draw)
     ]
     start = time.perf_counter()
-    rows = run_sweep(run_answers, cells, cache_dir=NO_CACHE, desc="held-out answers")
+    run = run_answers if args.family == "all" else run_without_memory
+    rows = run_sweep(run, cells, cache_dir=NO_CACHE, desc="held-out answers")
     seconds = time.perf_counter() - start
     steps = answers_to_step(rows)
     print(f"{len(cells)} runs of {args.episodes} answers in {seconds:.0f} s; {args.truths} truths per domain")
     print(steps.round(2).to_string(index=False))
     print(told_against_chosen(steps, rows).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+
+
+def without_memory() -> tuple[AnswerModel, ...]:
+    """`model_family()` without the myopic models that carry the picture's memory."""
+    return tuple(model for model in model_family() if not model.memory)
+
+
+def run_without_memory(cell: AnswersCell) -> pd.DataFrame:
+    """`run_answers`, the learner told nothing weighing `without_memory()` (a sweep's cell function)."""
+    return run_answers(cell, without_memory() if cell.told == "nothing" else None)
 
 
 if __name__ == "__main__":

@@ -14,6 +14,9 @@ models (`hipref.learners.answer_models`) and picks two candidates of Phi:
 - 'volume_removal': APReL's expected volume removed, 1 - sum_y P(y)^2 (Sadigh et al. 2017), which ignores
   how noisy each answer is.
 
+Every count below was measured with the family of 30 answer models, before the two myopic models with memory
+(`hipref.learners.pictures`) joined it.
+
 Information gain and volume removal score only the pairs whose midpoint lies within the belief's central half,
 widened by half a step of Phi (`CENTRAL`, `worth_asking`). Under the flip model bisection asks at the median
 anyway, and the learner told the teacher's model needs as many answers to one step as without the restriction
