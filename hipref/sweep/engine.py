@@ -6,7 +6,8 @@ killed with SIGKILL) exits at once. The cells of a worker that dies (killed, out
 on a fresh pool. A sweep whose cells still fail raises a short `SweepError` and logs every traceback.
 
 This module imports only the standard library (and tqdm) at load time: a spawned worker runs
-`_init_worker` before numpy or torch are loaded, so their one-thread settings take effect.
+`_init_worker` before the cells load numpy or torch, so their one-thread settings take effect; what the
+parent's main module has already loaded in the worker, `_init_worker` limits where it is (threadpoolctl).
 """
 
 from __future__ import annotations
