@@ -96,7 +96,8 @@ class PreferencePosterior:
         self.log_likelihood = np.zeros((len(models), self.cells.size))
         self.answers: list[tuple[np.ndarray, int]] = []
         self.chains = {k: PictureChain(m, candidates, self.cells) for k, m in enumerate(models) if m.memory}
-        """Per myopic model with memory, its picture's chain: its answers are read given the ones before."""
+        """Per myopic model with memory, its picture's chain; the others (`_alone`) read each answer alone."""
+        self._alone = [k for k in range(len(models)) if k not in self.chains]
 
     def _probabilities(self, candidates: np.ndarray, column: int) -> np.ndarray:
         if candidates.size == 2:
@@ -111,26 +112,25 @@ class PreferencePosterior:
         if i > j:  # the table holds (lower, higher): the first and second answers swap
             i, j = j, i
             column = {0: 1, 1: 0}.get(column, column)
-        size = self.candidates.size
-        pair = i * size - i * (i + 1) // 2 + (j - i - 1)
+        pair = i * self.candidates.size - i * (i + 1) // 2 + (j - i - 1)
         rows = np.zeros((len(self.models), self.cells.size))
-        for row, model in zip(rows, self.models, strict=True):
-            table = pair_table(self.candidates, self._cells_key, model)
+        for k in self._alone:
+            table = pair_table(self.candidates, self._cells_key, self.models[k])
             if (kept := table.row[column]) >= 0:
-                row[:] = table.probs[pair, kept]
+                rows[k] = table.probs[pair, kept]
         return rows
 
     def _computed_probabilities(self, candidates: np.ndarray, column: int) -> np.ndarray:
         offsets = (candidates[None, :] - self.cells[:, None]) / (self.candidates.high - self.candidates.low)
         # A model's flip acts after its rule: the rule is computed once per model without the flip.
         rules: dict[AnswerModel, np.ndarray] = {}
-        rows = []
-        for model in self.models:
-            rule = rule_of(model)
+        rows = np.zeros((len(self.models), self.cells.size))
+        for k in self._alone:
+            rule = rule_of(self.models[k])
             if rule not in rules:
                 rules[rule] = rule.probabilities(offsets)
-            rows.append(with_flip(rules[rule], model.flip)[:, column])
-        return np.stack(rows)
+            rows[k] = with_flip(rules[rule], self.models[k].flip)[:, column]
+        return rows
 
     def update(self, candidates: tuple[float, ...], column: int) -> None:
         """Multiply in the likelihood of one answer (`answer_column`) to a query over `candidates`."""
